@@ -118,12 +118,12 @@ def _map_note(command: str, new: bool = False) -> str:
 
 @pytest.fixture
 def no_swaps(monkeypatch):
-    """No folder set aside by :func:`spcopyro._util.outputs.swapped_in`, nor OUT committed, in
-    this process, and none this test sets aside or commits left recorded for the next."""
-    from spcopyro._util import outputs
+    """No folder set aside by :func:`spcopyro._util.folder_commit.swapped_in`, nor OUT committed,
+    in this process, and none this test sets aside or commits left recorded for the next."""
+    from spcopyro._util import folder_commit
 
-    monkeypatch.setattr(outputs, "_SET_ASIDE", [])
-    monkeypatch.setattr(outputs, "_COMPLETED", set())
+    monkeypatch.setattr(folder_commit, "_SET_ASIDE", [])
+    monkeypatch.setattr(folder_commit, "_COMPLETED", set())
 
 
 @pytest.mark.parametrize(("command", "hidden"), [("export", ""), ("import-bag", ".")])
@@ -138,7 +138,7 @@ def test_a_ctrl_c_as_the_replaced_folder_is_removed_names_it(
     import shutil
     import signal
 
-    from spcopyro._util.outputs import commit_folder
+    from spcopyro._util.folder_commit import commit_folder
 
     monkeypatch.chdir(tmp_path)
     (tmp_path / "N").mkdir()
@@ -269,14 +269,14 @@ def test_a_ctrl_c_held_through_a_failed_commit_of_simulate_is_said_after_its_err
     import os
     import signal
 
-    import spcopyro._util.outputs as outputs
+    import spcopyro._util.folder_commit as folder_commit
 
     def refused(files, folder):  # a Ctrl-C as the commit moves the map, then EEXIST (a fake:
         # the real move_files_in raises FilesNotMoved, an OSError, with the folder put back)
         os.kill(os.getpid(), signal.SIGINT)  # held by commit_folder
         raise FileExistsError(errno.EEXIST, "File exists", str(folder))
 
-    monkeypatch.setattr(outputs, "move_files_in", refused)
+    monkeypatch.setattr(folder_commit, "move_files_in", refused)
     out = tmp_path / "h"
     assert main(["simulate", "--out", str(out)]) == 130
     error = capsys.readouterr().err

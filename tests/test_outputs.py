@@ -189,14 +189,14 @@ def test_the_staging_folder_sits_beside_out_and_goes_when_discarded(tmp_path):
 def test_a_ctrl_c_between_the_overwrite_renames_waits_for_the_whole_new_out(tmp_path, monkeypatch):
     """fit/export/navigate --overwrite (StagedOutput.commit) had its own swap, unguarded: a Ctrl-C
     just after the old OUT was set aside left no OUT (the old one in OUT.replaced-*); now the
-    commit is :func:`~spcopyro._util.outputs.commit_folder`'s, the Ctrl-C held until OUT is the
-    new one with the user's files carried over, then raised (the commit marked done)."""
+    commit is :func:`~spcopyro._util.folder_commit.commit_folder`'s, the Ctrl-C held until OUT is
+    the new one with the user's files carried over, then raised (the commit marked done)."""
     import signal
 
-    from spcopyro._util import outputs
+    from spcopyro._util import folder_commit
 
-    monkeypatch.setattr(outputs, "_SET_ASIDE", [])
-    monkeypatch.setattr(outputs, "_COMPLETED", set())
+    monkeypatch.setattr(folder_commit, "_SET_ASIDE", [])
+    monkeypatch.setattr(folder_commit, "_COMPLETED", set())
     out = _fit_folder(tmp_path / "out")
     (out / "notes.txt").write_text("mine")
     staged = stage_output(out, overwrite=True)

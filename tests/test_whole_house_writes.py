@@ -1,8 +1,8 @@
 """``import-bag --overwrite`` and ``simulate`` write a house folder and its map
 (``../map/NAME.yaml`` and ``.pgm``) whole, together, or not at all
-(:func:`spcopyro._util.outputs.commit_folder`): import-bag wrote the map in place before it moved
-the folder in, so a failed or stopped import left a new map beside the old house; simulate wrote
-every file in place, so one stopped halfway left half of a new house over the old one."""
+(:func:`spcopyro._util.folder_commit.commit_folder`): import-bag wrote the map in place before it
+moved the folder in, so a failed or stopped import left a new map beside the old house; simulate
+wrote every file in place, so one stopped halfway left half of a new house over the old one."""
 
 from __future__ import annotations
 
@@ -16,7 +16,7 @@ from pathlib import Path
 import pytest
 from bag_maps import four_pose_bag, free_grid
 
-from spcopyro._util import outputs
+from spcopyro._util import folder_commit, outputs
 from spcopyro.cli.interrupted import interrupted_line
 from spcopyro.cli.main import build_parser, main
 
@@ -31,10 +31,10 @@ def _tree(root: Path) -> dict[str, bytes | None]:
 
 @pytest.fixture
 def no_swaps(monkeypatch):
-    """No folder set aside by :func:`spcopyro._util.outputs.swapped_in`, nor OUT committed,
-    recorded by another test, and none of this one's left for the next."""
-    monkeypatch.setattr(outputs, "_SET_ASIDE", [])
-    monkeypatch.setattr(outputs, "_COMPLETED", set())
+    """No folder set aside by :func:`spcopyro._util.folder_commit.swapped_in`, nor OUT
+    committed, recorded by another test, and none of this one's left for the next."""
+    monkeypatch.setattr(folder_commit, "_SET_ASIDE", [])
+    monkeypatch.setattr(folder_commit, "_COMPLETED", set())
 
 
 def _sigint_at_the_maps_move(monkeypatch, map_folder: Path, signum: int = signal.SIGINT) -> None:
@@ -336,7 +336,7 @@ def test_a_map_file_that_cannot_be_replaced_leaves_house_and_map_as_they_were(
         f"error: cannot put {root / 'map' / 'h.yaml'} in place (Is a directory); {root / 'h'}, "
         f"{root / 'map' / 'h.pgm'}, {root / 'map' / 'h.yaml'} left as they were\n"
     )
-    assert outputs.set_aside(root / "h") == [] and not outputs.completed(root / "h")
+    assert folder_commit.set_aside(root / "h") == [] and not folder_commit.completed(root / "h")
     fresh = tmp_path / "fresh"  # a first write: no house before, nor a .pgm
     (fresh / "map" / "h.yaml").mkdir(parents=True)
     assert main(["simulate", "--out", str(fresh), "--name", "h"]) == 2
@@ -569,7 +569,7 @@ def test_a_ctrl_c_anywhere_in_the_old_folders_removal_is_a_ctrl_c(tmp_path, monk
         with monkeypatch.context() as patch:
             raised = _ctrl_c_in_rmtree(patch, ".replaced-", at=count)
             try:
-                outputs.commit_folder(case / "S", case / "N", {"a", "sub"})
+                folder_commit.commit_folder(case / "S", case / "N", {"a", "sub"})
             except KeyboardInterrupt:
                 assert raised, count
             else:

@@ -1,9 +1,9 @@
 """Staged files moved over their targets as one: all of them, or none.
 
-:func:`~spcopyro._util.outputs.commit_folder` moves a house's map (``NAME.pgm``, ``NAME.yaml``,
-staged beside them) in with the house folder: one file that cannot be put in place (a folder
-where ``NAME.yaml`` goes, a permission refused) must not leave the other one new. Imports nothing
-of the package.
+:func:`~spcopyro._util.folder_commit.commit_folder` moves a house's map (``NAME.pgm``,
+``NAME.yaml``, staged beside them) in with the house folder: one file that cannot be put in place
+(a folder where ``NAME.yaml`` goes, a permission refused) must not leave the other one new.
+Imports nothing of the package.
 """
 
 from __future__ import annotations

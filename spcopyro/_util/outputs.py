@@ -19,9 +19,14 @@ Ctrl-C, or a second fit into the same folder never leaves a mixture of two runs'
   (:func:`checkpoint_path`), never inside it, so it cannot be mistaken for a result.
 * Staging folders and new files get the permissions a plain ``mkdir`` or ``open`` gives under
   the user's umask (not ``tempfile``'s 0700 / 0600); a folder or file replaced keeps the old
-  one's mode (:func:`commit_folder`, :func:`replace_file`), as ``open`` keeps a file's.
+  one's mode (:func:`~spcopyro._util.folder_commit.commit_folder`, :func:`replace_file`), as
+  ``open`` keeps a file's.
 
-Imports of the package: only :mod:`~spcopyro._util.interrupts`, :mod:`~spcopyro._util.file_moves`.
+The move into place itself, the old folder set aside and what its writer did not write carried
+over, is :mod:`~spcopyro._util.folder_commit`'s.
+
+Imports of the package: only :mod:`~spcopyro._util.interrupts`, :mod:`~spcopyro._util.file_moves`,
+:mod:`~spcopyro._util.folder_commit`.
 """
 
 from __future__ import annotations
@@ -33,18 +38,24 @@ import json
 import os
 import re
 import secrets
-import stat
 import zipfile
 import zlib
-from collections.abc import Callable, Container, Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import BinaryIO, TypeVar
 
 import numpy as np
 
-from spcopyro._util.file_moves import FilesNotMoved, kept_old_files, move_files_in, take_mode
-from spcopyro._util.interrupts import remove_tree, signals_deferred
+from spcopyro._util.file_moves import kept_old_files, take_mode
+from spcopyro._util.folder_commit import (
+    absolute_path,
+    commit_folder,
+    completed,
+    is_empty_folder,
+    write_started,
+)
+from spcopyro._util.interrupts import remove_tree
 
 try:  # POSIX: serialise commits into one parent folder
     import fcntl
@@ -141,12 +152,8 @@ class OutputError(ValueError):
 def checkpoint_path(out: str | os.PathLike[str]) -> Path:
     """``OUT.checkpoint.npz``: where an interrupted fit into ``out`` keeps its state (beside
     OUT, not inside it)."""
-    out = _absolute(out)
+    out = absolute_path(out)
     return out.parent / f"{out.name}{CHECKPOINT_SUFFIX}"
-
-
-def _absolute(path: str | os.PathLike[str]) -> Path:
-    return Path(os.path.abspath(os.fspath(path)))
 
 
 def _identity(path: Path) -> tuple[int, int] | None:
@@ -156,11 +163,6 @@ def _identity(path: Path) -> tuple[int, int] | None:
     except (FileNotFoundError, NotADirectoryError):
         return None
     return status.st_dev, status.st_ino
-
-
-def _is_empty_folder(path: Path) -> bool:
-    with os.scandir(path) as entries:
-        return next(entries, None) is None
 
 
 @contextlib.contextmanager
@@ -198,9 +200,10 @@ class StagedOutput:
     """The staged files were kept after a failed commit (:meth:`discard` leaves them)."""
 
     def commit(self) -> Path:
-        """Move the staged folder to :attr:`out` (:func:`commit_folder`); with ``overwrite`` a
-        non-empty old one is replaced: set aside, what the old fit did not write (not in its
-        manifest: a user's notes, ``where`` figures) carried into the new OUT, the rest removed.
+        """Move the staged folder to :attr:`out`
+        (:func:`~spcopyro._util.folder_commit.commit_folder`); with ``overwrite`` a non-empty
+        old one is replaced: set aside, what the old fit did not write (not in its manifest: a
+        user's notes, ``where`` figures) carried into the new OUT, the rest removed.
         A Ctrl-C meanwhile is raised once OUT is the new one (:attr:`committed` then True).
 
         Raises:
@@ -217,7 +220,7 @@ class StagedOutput:
                     f"{self.out} was written by another process while this fit ran; it is left "
                     f"as that one wrote it, and this fit's outputs are in {self.path}"
                 )
-            replace = self.seen is not None and self.overwrite and not _is_empty_folder(self.out)
+            replace = self.seen is not None and self.overwrite and not is_empty_folder(self.out)
             try:
                 commit_folder(self.path, self.out, fit_written(self.out) if replace else (),
                               replace=replace)  # fmt: skip
@@ -246,121 +249,6 @@ class StagedOutput:
             self.discard()
 
 
-_SET_ASIDE: list[tuple[Path, Path]] = []
-"""(OUT, the folder :func:`swapped_in` set it aside in), absolute, for each swap of this process
-not yet finished: one stopped by an error (Ctrl-C included) stays, its folder kept."""
-
-
-@contextlib.contextmanager
-def swapped_in(out: Path, staging: Path, hidden: bool = False) -> Iterator[Path]:
-    """The folder ``out`` set aside (yielded: ``OUT.replaced-XXXXXXXX`` beside it, with a
-    leading dot if ``hidden``) and ``staging`` renamed into its place (the old one put back if
-    that fails, or the block's OSError leaves ``out`` empty: it put the new one back);
-    the old one removed once the block ends, or kept after another error (:func:`set_aside`)."""
-    old = out.parent / f"{'.' if hidden else ''}{out.name}.replaced-{secrets.token_hex(4)}"
-    swap = (_absolute(out), _absolute(old))
-    # recorded before the rename, so that a Ctrl-C just after it finds it; one just before
-    # leaves it recorded but not there, and set_aside names only a folder that is there
-    _SET_ASIDE.append(swap)
-    try:
-        os.rename(out, old)
-    except OSError:  # nothing set aside
-        _SET_ASIDE.remove(swap)
-        raise
-    try:
-        os.rename(staging, out)
-        yield old
-    except OSError:
-        if not os.path.lexists(out):  # the new one not (or no longer) there: the old one back
-            os.rename(old, out)
-            _SET_ASIDE.remove(swap)
-        raise
-    remove_tree(old)  # a Ctrl-C meanwhile leaves it (set_aside names it)
-    _SET_ASIDE.remove(swap)
-
-
-def set_aside(out: str | os.PathLike[str]) -> list[Path]:
-    """The folders :func:`swapped_in` set ``out`` aside in, in this process, and kept (a swap
-    stopped, by Ctrl-C or an error, before it removed the folder), those still there; absolute.
-    A leftover ``OUT.replaced-*`` of an earlier process is not one of them."""
-    out = _absolute(out)
-    return [old for where, old in _SET_ASIDE if where == out and os.path.lexists(old)]
-
-
-def carry_over(old: Path, out: Path, written: Container[str]) -> tuple[str, ...]:
-    """Move the entries of the replaced folder ``old`` that its writer did not write (not in
-    ``written``: ``Ft.csv`` of ``spcopyro features``, a user's notes) into the new ``out``,
-    unless ``out`` holds one of that name; their names, sorted."""
-    kept = []
-    for entry in sorted(old.iterdir()):
-        if entry.name not in written and not (out / entry.name).exists():
-            os.rename(entry, out / entry.name)
-            kept.append(entry.name)
-    return tuple(kept)
-
-
-_COMPLETED: set[Path] = set()
-"""The OUTs :func:`commit_folder` moved a new folder (and its files) into, in this process,
-absolute; a new staging folder for one (:func:`staging_folder`, :func:`stage_output`,
-:func:`stage_marked_folder`) takes it out again: its latest write is not done."""
-
-
-def completed(out: str | os.PathLike[str]) -> bool:
-    """Whether this process's latest write into ``out`` is in place, whole (:func:`commit_folder`
-    finished its renames), though a Ctrl-C may have stopped the command after."""
-    return _absolute(out) in _COMPLETED
-
-
-def commit_folder(
-    staging: Path,
-    out: Path,
-    written: Container[str],
-    files: Sequence[tuple[Path, Path]] = (),
-    *,
-    hidden: bool = False,
-    replace: bool = True,
-) -> tuple[str, ...]:
-    """Move the staged folder ``staging`` to ``out``, then each ``(staged, target)`` of
-    ``files`` (staged beside its target in a :func:`staging_folder`: a house's map) over its
-    target, all or none (:func:`~spcopyro._util.file_moves.move_files_in`: one refused, the
-    folder is put back too, and :class:`FilesNotMoved` names it); the new ``out`` and files
-    keep the old ones' modes. A non-empty ``out`` is set aside (:func:`swapped_in`, ``hidden``;
-    with ``replace`` False the rename fails on one instead, OSError), what its writer did not
-    write (not in ``written``) carried into the new one (:func:`carry_over`), then removed. A
-    Ctrl-C (or SIGTERM) meanwhile is held until all are in place and the old folder removed
-    (:func:`~spcopyro._util.interrupts.signals_deferred`): it finds all old or all new, and
-    :func:`completed` says which; an OSError raised says in ``signalled`` whether one was held
-    (``[SIGNUM]``, else ``[]``). Returns the names carried."""
-    signalled: list[int] = []
-    mode = stat.S_IMODE(out.stat().st_mode) if out.is_dir() else None  # the old OUT's
-    held = signals_deferred(lambda signum, frame: signalled.append(signum))  # renames
-    try:
-        with contextlib.ExitStack() as swap, held:  # on leaving: the old folder removed
-            old = None
-            if replace and out.is_dir() and not _is_empty_folder(out):
-                old = swap.enter_context(swapped_in(out, staging, hidden))
-            else:
-                os.rename(staging, out)  # replaces an empty folder atomically
-            try:
-                move_files_in(files, out)  # all or none
-            except FilesNotMoved:  # the new folder put back too (swapped_in puts back an old one)
-                os.rename(out, staging)
-                if old is None and mode is not None:  # an empty OUT was there
-                    out.mkdir(mode=mode)
-                    os.chmod(out, mode)  # not the umask's
-                raise
-            kept = () if old is None else carry_over(old, out, written)
-            if mode is not None:  # not before: carry_over writes into OUT
-                os.chmod(out, mode)
-            _COMPLETED.add(_absolute(out))
-    except OSError as error:  # said with the Ctrl-C held meanwhile (cli.main: then 130)
-        error.signalled = signalled[:1]  # type: ignore[attr-defined]
-        raise
-    if signalled:  # all in place: stopped now
-        raise KeyboardInterrupt(f"signal {signalled[0]}")
-    return kept
-
-
 def nearest_existing(path: Path) -> Path:
     """``path`` or the nearest of its parents that exists (where an output would be made)."""
     while not path.exists() and path.parent != path:
@@ -377,7 +265,7 @@ def check_not_holding_cwd(path: str | os.PathLike[str], label: str) -> None:
     """:class:`OutputError` when the folder ``path`` is or holds the current directory: an
     output moved into place there (a rename onto it, even empty) deletes the folder the shell
     stands in, which then lists nothing (``cd .`` finds it again)."""
-    folder = _absolute(path)
+    folder = absolute_path(path)
     if folder.is_dir() and Path.cwd().resolve().is_relative_to(folder.resolve()):
         raise OutputError(
             f"{label}: {folder} holds the current directory, which putting the finished folder "
@@ -392,7 +280,7 @@ def check_folder_path(path: str | os.PathLike[str], label: str) -> Path:
     a file, not a folder"`` otherwise (``label``: how the user gave it, e.g. ``"--out OUT"``),
     before any work: making it failed after the work with a bare ``[Errno 17] File exists`` or
     ``[Errno 20] Not a directory``."""
-    existing = nearest_existing(_absolute(path))
+    existing = nearest_existing(absolute_path(path))
     if not existing.is_dir():
         raise NotAFolderError(f"{label}: {existing} is a file, not a folder")
     return existing
@@ -413,18 +301,18 @@ def check_output(
     (no ``result.npz`` and ``config.json``), when it holds the current directory (even empty:
     :func:`check_not_holding_cwd`), and when ``OUT.checkpoint.npz`` holds an interrupted fit
     that this one neither resumes (``resume``) nor replaces (``overwrite``)."""
-    path = _absolute(out)
+    path = absolute_path(out)
     if path.parent == path:
         raise OutputError(f"--out {out}: the root folder cannot be an output folder")
     for read in inputs:
-        if read is not None and _absolute(read).resolve().is_relative_to(path.resolve()):
+        if read is not None and absolute_path(read).resolve().is_relative_to(path.resolve()):
             raise OutputError(
                 f"--out {out}: {path} holds the input {read}, which replacing the folder would "
                 "delete; choose an --out outside the data"
             )
     check_folder_path(path, f"--out {out}")
     check_not_holding_cwd(path, f"--out {out}")
-    if path.is_dir() and not _is_empty_folder(path):
+    if path.is_dir() and not is_empty_folder(path):
         if not overwrite:
             raise OutputError(
                 f"--out {out}: {path} exists and is not empty; pass --overwrite to replace it "
@@ -438,7 +326,7 @@ def check_output(
                 "--overwrite replaces only a fit's output folder: choose another --out"
             )
     checkpoint = checkpoint_path(path)
-    resuming = resume is not None and _absolute(resume) == checkpoint
+    resuming = resume is not None and absolute_path(resume) == checkpoint
     if checkpoint.exists() and not (resuming or overwrite):
         raise OutputError(
             f"{checkpoint} holds an interrupted fit into {path}: continue it with --resume "
@@ -504,11 +392,12 @@ def staging_folder(out: str | os.PathLike[str], hidden: bool = False) -> Path:
     """A new empty folder beside ``out`` (``OUT.partial-PID-XXXXXXXX``, with a leading dot if
     ``hidden``: :func:`staging_prefix`), made as ``mkdir`` makes one; ``out``'s parent made if
     missing, and the staging folders a dead process left beside ``out`` removed first
-    (:func:`remove_stale_stagings`). ``out``'s latest write is not :func:`completed` any more."""
-    path = _absolute(out)
+    (:func:`remove_stale_stagings`). ``out``'s latest write is not
+    :func:`~spcopyro._util.folder_commit.completed` any more."""
+    path = absolute_path(out)
     path.parent.mkdir(parents=True, exist_ok=True)
     remove_stale_stagings(path, hidden)
-    _COMPLETED.discard(path)
+    write_started(path)
     return _new_folder(path.parent, staging_prefix(path, hidden))
 
 
@@ -570,7 +459,7 @@ def _new_file(parent: Path, prefix: str) -> tuple[int, Path]:
 def replace_file(path: str | os.PathLike[str], write: Callable[[BinaryIO], None]) -> Path:
     """Write a file through ``write(file)`` into a temporary file beside ``path``, then rename it
     over ``path`` (whose mode it keeps): readers see the old file or the new one, never half."""
-    path = _absolute(path)
+    path = absolute_path(path)
     descriptor, partial = _new_file(path.parent, f"{path.name}{STAGING_INFIX}")
     try:
         take_mode(partial, path)  # a file there keeps its mode, as the maps (move_files_in)

@@ -3,8 +3,8 @@ and what became of what it writes. ``fit`` says more itself (:mod:`spcopyro.cli.
 from the moment its parser's handler runs); it is listed in :data:`WHOLE` for a Ctrl-C in the
 instant before that handler is in place, when this line is the one printed. Imports nothing of
 the package (``main`` is on the ``--help`` path, which must not import torch) but
-:mod:`spcopyro.cli.out_names` and, once stopped, :mod:`spcopyro._util.outputs` (which import
-nothing of it either)."""
+:mod:`spcopyro.cli.out_names` and, once stopped, :mod:`spcopyro._util.folder_commit` (which
+import nothing of it either)."""
 
 from __future__ import annotations
 
@@ -33,7 +33,7 @@ run's)."""
 HOUSES = frozenset({"simulate"})
 """Commands that write a house under ``--out`` (``OUT/NAME/`` and its map ``OUT/map/NAME.yaml``
 and ``.pgm``) whole, folder and map together, or not at all
-(:func:`spcopyro._util.outputs.commit_folder`)."""
+(:func:`spcopyro._util.folder_commit.commit_folder`)."""
 OUT_OPTION = {"export": "nav2"}
 """The attribute of a command's output where it is not ``out`` (``export --nav2 DIR``)."""
 
@@ -101,17 +101,18 @@ def _figures(args: argparse.Namespace, out: str) -> list[str]:
     return [str(figure)]
 
 
-def _outputs() -> ModuleType | None:
-    """:mod:`spcopyro._util.outputs` where something imported it, else None (then nothing was
-    written); importing it here would take numpy's seconds."""
-    return sys.modules.get("spcopyro._util.outputs")
+def _commits() -> ModuleType | None:
+    """:mod:`spcopyro._util.folder_commit` where something imported it (as
+    :mod:`spcopyro._util.outputs` does), else None (then no folder was moved in); the Ctrl-C line
+    imports nothing to say so."""
+    return sys.modules.get("spcopyro._util.folder_commit")
 
 
 def _completed(out: str) -> bool:
     """Whether this process's latest write into ``out`` is in place, whole
-    (:func:`spcopyro._util.outputs.completed`); not when nothing imported that module."""
-    outputs = _outputs()
-    return outputs is not None and outputs.completed(out)
+    (:func:`spcopyro._util.folder_commit.completed`); not when nothing imported that module."""
+    commits = _commits()
+    return commits is not None and commits.completed(out)
 
 
 def _old_kept(out: str) -> str:
@@ -119,9 +120,9 @@ def _old_kept(out: str) -> str:
     as the replaced folder was being removed (after the commit, which carried the files its
     writer did not write into the new one: what is left is the earlier run's own), as the user
     named OUT; else ``""``. A leftover of an earlier process is not named
-    (:func:`spcopyro._util.outputs.set_aside`)."""
-    outputs = _outputs()
-    folders = [] if outputs is None else outputs.set_aside(out)
+    (:func:`spcopyro._util.folder_commit.set_aside`)."""
+    commits = _commits()
+    folders = [] if commits is None else commits.set_aside(out)
     shown = PurePath(out).parent
     aside = sorted(str(shown / folder.name) for folder in folders)
     return f"; the old one, not yet removed, is in {', '.join(aside)}" if aside else ""

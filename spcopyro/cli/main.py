@@ -538,7 +538,8 @@ def main(argv: list[str] | None = None) -> int:
             return BROKEN_PIPE
         except (OSError, ValueError) as error:  # bad input: one clear line, no traceback
             print(f"error: {_error_line(error)}", file=sys.stderr)
-            # a Ctrl-C held while a commit failed (outputs.commit_folder; an OutputError of it)
+            # a Ctrl-C held while a commit failed (folder_commit.commit_folder; an OutputError of
+            # it)
             if not any(getattr(e, "signalled", None) for e in (error, error.__context__)):
                 return 2
         except KeyboardInterrupt as interrupt:  # Ctrl-C: one line, no traceback (fit says more)
@@ -555,7 +556,7 @@ def main(argv: list[str] | None = None) -> int:
 def _say_interrupted(args: argparse.Namespace, stop: BaseException) -> int:
     """Print the line of a Ctrl-C (:func:`interrupted_line`: which command, what of its
     ``--out``) unless ``stop.said`` (a study has said how far it got); 130. A second Ctrl-C (the
-    first held through a commit, :func:`spcopyro._util.outputs.commit_folder`) stops nothing
+    first held through a commit, :func:`spcopyro._util.folder_commit.commit_folder`) stops nothing
     more: one as the line is said is dropped, one before that is caught and the line said."""
     said = False
     while True:

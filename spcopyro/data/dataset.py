@@ -470,7 +470,7 @@ def save_house(
             writes beside them) are replaced; other files are left alone.
 
     The folder is written beside ``root/NAME`` and moved into place with the map's files, all
-    at once (:func:`~spcopyro._util.outputs.commit_folder`): an error or a Ctrl-C leaves the
+    at once (:func:`~spcopyro._util.folder_commit.commit_folder`): an error or a Ctrl-C leaves the
     house there before (or none) as it was. ``extra(folder)`` writes further files into the
     folder before that (``simulate --map``'s rooms). The images are copied before it too, so a
     house loaded from ``root/NAME`` may be written over it.
@@ -512,7 +512,8 @@ def save_house(
     if (room.exists() and any(room.iterdir())) or map_yaml.exists():
         if not overwrite:
             raise FileExistsError(f"{room} (or {map_yaml}) already exists; pass overwrite=True")
-    from spcopyro._util.outputs import commit_folder, staging_folder  # not on --help's path
+    from spcopyro._util.folder_commit import commit_folder  # not on --help's path
+    from spcopyro._util.outputs import staging_folder
 
     staging = staging_folder(room)  # the house written beside ROOM, moved in whole
     try:
@@ -577,7 +578,7 @@ def _write_room(house: House, room: Path) -> None:
 
 class _Saved:
     """The entries :func:`save_house` writes (or replaces: stale ``pose_K``, ``img_K``, ...):
-    ``in`` for :func:`~spcopyro._util.outputs.carry_over`, which keeps the others."""
+    ``in`` for :func:`~spcopyro._util.folder_commit.carry_over`, which keeps the others."""
 
     def __contains__(self, name: object) -> bool:
         return isinstance(name, str) and bool(

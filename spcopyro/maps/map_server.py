@@ -294,10 +294,10 @@ def stage_map(
 ) -> Iterator[list[tuple[Path, Path]]]:
     """:func:`save_map` into a staging folder beside ``yaml_path`` (``NAME.yaml.partial-...``:
     :func:`~spcopyro._util.outputs.staging_folder`), for a writer that moves the map in with a
-    house folder (:func:`~spcopyro._util.outputs.commit_folder`): yields its ``(file, target)``
-    pairs, the ``.pgm`` first, and removes the folder on leaving -- but not when a
-    :class:`~spcopyro._util.file_moves.FilesNotMoved` left an old map file in it (``stranded``:
-    the error names it). The same bytes as :func:`save_map` at ``yaml_path``."""
+    house folder (:func:`~spcopyro._util.folder_commit.commit_folder`): yields its
+    ``(file, target)`` pairs, the ``.pgm`` first, and removes the folder on leaving -- but not
+    when a :class:`~spcopyro._util.file_moves.FilesNotMoved` left an old map file in it
+    (``stranded``: the error names it). The same bytes as :func:`save_map` at ``yaml_path``."""
     from spcopyro._util.file_moves import FilesNotMoved
     from spcopyro._util.outputs import staging_folder  # zipfile, secrets: not on --help's path
 

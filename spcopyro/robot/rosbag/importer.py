@@ -63,8 +63,9 @@ from typing import Any
 
 import numpy as np
 
+from spcopyro._util.folder_commit import commit_folder
 from spcopyro._util.interrupts import remove_tree
-from spcopyro._util.outputs import commit_folder, staging_folder
+from spcopyro._util.outputs import staging_folder
 from spcopyro._util.progress import clears_when_done, progress_enabled
 from spcopyro.data.text import tokenize
 from spcopyro.maps.grid import OccupancyGrid
