@@ -409,10 +409,10 @@ def stage_marked_folder(
     ``overwrite``, and with it any folder that holds no ``marker`` (so ``--overwrite`` never
     deletes a folder that ``writer`` did not write) or holds the current directory. ``option``
     names the command-line option in every message."""
-    path = Path(os.path.abspath(os.fspath(out)))
+    path = absolute_path(out)
     check_folder_path(path, f"{option} {out}")  # a file above it said "... File exists"
     check_not_holding_cwd(path, f"{option} {out}")
-    if path.is_dir() and any(path.iterdir()):
+    if path.is_dir() and not is_empty_folder(path):
         if not overwrite:
             raise OutputError(
                 f"{option} {out}: {path} exists and is not empty; pass --overwrite to replace "
