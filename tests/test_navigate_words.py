@@ -223,6 +223,20 @@ def test_navigate_and_where_list_the_known_words_with_one_helper():
     assert str(navigate_error.value).endswith("known words: " + shown), navigate_error.value
 
 
+def test_listed_names_one_entry_over_the_limit_instead_of_counting_it():
+    """A list read "a, b, ... (1 more)", which took as much of the line as the "c" it hid
+    (where's note on room1dk6's 'bedroom' hid 'table' so, fbd0d38): one over the limit is now
+    named, two are counted, and where's shared-answer note cuts by the same rule
+    (``shown_count``)."""
+    from spcopyro._util.messages import KNOWN_WORDS_SHOWN, listed, shown_count
+
+    assert listed(["a", "b", "c"], 2) == "a, b, c"
+    assert listed(["a", "b", "c", "d"], 2) == "a, b, ... (2 more)"
+    many = tuple(f"room{k:02d}x" for k in range(KNOWN_WORDS_SHOWN + 1))
+    assert listed(many) == ", ".join(many)
+    assert [shown_count(n, 3) for n in range(7)] == [0, 1, 2, 3, 4, 3, 3]
+
+
 def test_every_layer_lists_words_with_the_one_helper_of_messages():
     """``listed`` lives beside ``echo`` in ``_util.messages`` (which the data layer may import):
     the St.csv warnings (invisible characters, sentences without spaces) and ``fit --update``'s

@@ -3,7 +3,8 @@
 A loader that rejects a line echoes it, so the reader can find it; a ragged 205-column Ft.csv
 row is about 5 KB, which buries the message. :func:`echo` gives the ``repr`` of a value when it is
 short, else the first :data:`ECHO_LIMIT` characters and how long the whole is; :func:`listed`
-lists words (or entries) the same way, the first few and how many more. :func:`warn_once`
+lists words (or entries) the same way, the first few and how many more (:func:`shown_count`:
+one over the few is named, not counted). :func:`warn_once`
 logs a warning once a process, for what a study's hundreds of fits would repeat.
 :func:`setting` names a setting a message tells the user to change, for both of its readers: a
 library caller and ``spcopyro fit``. :func:`shown_bytes` shows a byte that is not UTF-8 (a map
@@ -21,7 +22,8 @@ from contextlib import contextmanager
 
 __all__ = [
     "ECHO_LIMIT", "KNOWN_WORDS_SHOWN", "area_text", "echo", "fixed", "listed", "one_of", "plural",
-    "seconds_text", "setting", "shown_bytes", "warn_once", "warned_apart", "with_article",
+    "seconds_text", "setting", "shown_bytes", "shown_count", "warn_once", "warned_apart",
+    "with_article",
 ]  # fmt: skip
 
 ECHO_LIMIT = 80
@@ -54,15 +56,24 @@ KNOWN_WORDS_SHOWN = 30
 words in the public houses, whole: the list stopped at 10)."""
 
 
+def shown_count(total: int, shown: int) -> int:
+    """How many of ``total`` entries a list that names at most ``shown`` and counts the rest
+    names: ``min(total, shown)``, but all of them when one is over, since one over the limit is
+    named, not counted ("..., ... (1 more)" or "and 1 more word" takes as much of the line as
+    the entry it hides: ``where``'s note on room1dk6's 'bedroom' hid 'table' so)."""
+    return total if total == shown + 1 else min(total, shown)
+
+
 def listed(words: Sequence[str], shown: int = KNOWN_WORDS_SHOWN) -> str:
     """``words`` joined by ", ", the first ``shown`` of them, then ", ... (N more)" for the
-    rest: how an error or a warning lists words (``where``'s unknown word, ``navigate``'s
-    instruction, ``fit --update``'s unheard words, renamed saved words, a St.csv's words with
-    invisible characters or written without spaces). Its default, a home's whole vocabulary:
-    ``navigate``'s list stopped at 12 and hid room1dk5's 'washroom' from "go to the
-    bathroom"."""
-    more = len(words) - shown
-    return ", ".join(words[:shown]) + (f", ... ({more} more)" if more > 0 else "")
+    rest (:func:`shown_count`: all ``shown + 1`` where one is over): how an error or a warning
+    lists words (``where``'s unknown word, ``navigate``'s instruction, ``fit --update``'s unheard
+    words, renamed saved words, a St.csv's words with invisible characters or written without
+    spaces). Its default, a home's whole vocabulary: ``navigate``'s list stopped at 12 and hid
+    room1dk5's 'washroom' from "go to the bathroom"."""
+    named = shown_count(len(words), shown)
+    more = len(words) - named
+    return ", ".join(words[:named]) + (f", ... ({more} more)" if more > 0 else "")
 
 
 def one_of(values: Sequence[object]) -> str:

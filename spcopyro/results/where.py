@@ -62,7 +62,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from spcopyro._util.messages import plural, setting
+from spcopyro._util.messages import plural, setting, shown_count
 
 __all__ = [
     "DEFAULT_WHERE_PRIOR",
@@ -211,12 +211,11 @@ def shared_concept_note(
 ) -> str | None:
     """:func:`shared_answer_note` of an answer's ``concept`` and
     :attr:`~WhereAnswer.shared_with` (``navigate`` keeps these two of each stop's answer).
-    One word over ``shown`` is named, not counted: "and 1 more word" took as much of the line
-    as the word (room1dk6's 'bedroom' hid 'table' so)."""
+    One word over ``shown`` is named, not counted (:func:`~spcopyro._util.messages.shown_count`,
+    as :func:`~spcopyro._util.messages.listed` lists)."""
     if not shared_with:
         return None
-    if len(shared_with) == shown + 1:
-        shown += 1
+    shown = shown_count(len(shared_with), shown)
     named = ", ".join(f"{w!r} ({_above_text(p, SHARED_ANSWER_P)})" for w, p in shared_with[:shown])
     more = len(shared_with) - shown
     rest = f" and {plural(more, 'more word')}" if more > 0 else ""
