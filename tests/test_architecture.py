@@ -172,7 +172,7 @@ def test_fit_house_imports_refine_at_its_top():
     "protected",
     [
         "spcopyro.model", "spcopyro.model_checks", "spcopyro.figures.plotting",
-        "spcopyro.cli.fit_write", "spcopyro._util.folder_commit",
+        "spcopyro.cli.fit_write", "spcopyro._util.folder_commit", "spcopyro._util.outputs",
     ],
 )  # fmt: skip
 def test_no_module_imports_a_private_name_of(protected):

@@ -96,7 +96,7 @@ def test_help_imports_neither_point_estimate_nor_bag_importer():
     """The parser's choices of ``--point-estimate`` and the rosbag commands' options need neither
     :mod:`spcopyro.results.point_estimate` nor :mod:`spcopyro.robot.rosbag.importer`; nor does
     any command's parser need zipfile or secrets (:mod:`spcopyro._util.outputs`, which
-    study.commands imported at the top for ``_identity``)."""
+    study.commands imported at the top for ``file_identity``)."""
     imported, printed = heavy_imports(["--help"], OWN_LEFTOVERS + WRITING_LIBRARIES)
     assert imported == []
     assert "import-bag" in printed

@@ -156,8 +156,10 @@ def checkpoint_path(out: str | os.PathLike[str]) -> Path:
     return out.parent / f"{out.name}{CHECKPOINT_SUFFIX}"
 
 
-def _identity(path: Path) -> tuple[int, int] | None:
-    """(device, inode) of ``path`` (not following a link), None where nothing is there."""
+def file_identity(path: Path) -> tuple[int, int] | None:
+    """(device, inode) of ``path`` (not following a link), None where nothing is there: tells a
+    file replaced whole (a new inode) from the one seen before (``study.commands`` names a
+    stopped run's reports that are still an earlier run's so)."""
     try:
         status = path.lstat()
     except (FileNotFoundError, NotADirectoryError):
@@ -214,7 +216,7 @@ class StagedOutput:
             raise OutputError(f"{self.out}: already committed")
         write_manifest(self.path)
         with _parent_lock(self.out.parent):
-            if _identity(self.out) != self.seen:
+            if file_identity(self.out) != self.seen:
                 self.kept = True
                 raise OutputError(
                     f"{self.out} was written by another process while this fit ran; it is left "
@@ -378,7 +380,7 @@ def stage_output(
     """:func:`check_output`, then the staging folder beside ``out`` made (and ``out``'s parent):
     an unwritable place fails here, with :class:`OutputError`, before any work."""
     path = check_output(out, overwrite=overwrite, resume=resume, inputs=inputs)
-    seen = _identity(path)
+    seen = file_identity(path)
     try:
         staging = staging_folder(path)
     except OSError as error:

@@ -159,13 +159,13 @@ def _reports_of_an_earlier_run(out: str, *names: str) -> Iterator[None]:
     without a word. One it had replaced is this run's, whole, and not named: each is replaced
     through :func:`spcopyro._util.outputs.replace_text` (or ``replace_figure``), a new inode, so
     (device, inode) tells the two apart."""
-    from spcopyro._util.outputs import _identity  # at a run only: nothing on the --help path
+    from spcopyro._util.outputs import file_identity  # at a run only: nothing on the --help path
 
-    seen = {path: _identity(path) for path in (Path(out) / name for name in names)}
+    seen = {path: file_identity(path) for path in (Path(out) / name for name in names)}
     try:
         yield
     except KeyboardInterrupt:
-        earlier = [p for p, version in seen.items() if version and _identity(p) == version]
+        earlier = [p for p, version in seen.items() if version and file_identity(p) == version]
         if earlier:
             print(f"{', '.join(map(str, earlier))}: an earlier run's, not rewritten (they are "
                   "written at the end); run the same command again to finish them",
