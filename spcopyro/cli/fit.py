@@ -10,7 +10,6 @@ from __future__ import annotations
 
 import argparse
 import contextlib
-import dataclasses
 import functools
 import sys
 import time
@@ -19,7 +18,6 @@ from typing import TYPE_CHECKING
 
 from spcopyro._util.interrupts import interrupts_raised, sigterm_as_interrupt
 from spcopyro._util.messages import plural
-from spcopyro._util.outputs import StagedOutput
 from spcopyro._util.progress import progress_stage
 from spcopyro._util.threads import describe_threads
 from spcopyro._util.timings import Phases
@@ -32,6 +30,7 @@ from spcopyro.cli.common import (
 )
 from spcopyro.cli.fit_figures import FigurePrefetch
 from spcopyro.cli.fit_finished import keep_finished, restore_finished, resumes_finished_fit
+from spcopyro.cli.fit_job import FitJob
 from spcopyro.cli.fit_options import (
     SAMPLERS,
     backend_used,
@@ -60,47 +59,18 @@ from spcopyro.cli.fit_summary import data_line, inference_line, model_line
 from spcopyro.cli.fit_update import relative_records, report_update, update_settings
 from spcopyro.cli.fit_warnings import recorded_warnings
 from spcopyro.cli.fit_write import Fitted, write_outputs
-from spcopyro.config import SpCoSettings, preset_inference
-from spcopyro.data import House
+from spcopyro.config import preset_inference
 from spcopyro.data.footprint import release_shared_footprints, shared_footprints
 from spcopyro.data.model_grid import model_house
 from spcopyro.gibbs.chains import when_chains_start
 from spcopyro.maps.free_space import check_free_cells
 
 if TYPE_CHECKING:
-    from spcopyro.fit.gibbs_chains import FitCheckpoint
     from spcopyro.results.result import SpCoResult
 
 __all__ = ["run_fit"]
 
 _clock = time.perf_counter  # wall clock of a whole fit (all chains)
-
-
-@dataclasses.dataclass
-class FitJob:
-    """One ``fit`` command in progress: its arguments, what they resolved to, where it writes."""
-
-    args: argparse.Namespace
-    house: House
-    """The house on the model's grid (``--cell-size``)."""
-    settings: SpCoSettings
-    options: object | None
-    """The method's options (None: its defaults)."""
-    staged: StagedOutput
-    keeper: FitCheckpoint | None
-    """Keeps the Gibbs chains for a checkpoint beside OUT (None where none is kept)."""
-    map_house: House | None = None
-    """The house on its map's own cells, as loaded: ``--refine`` refits there, and sets
-    ``refined`` and ``house = map_house`` when it does."""
-    refined: bool = False
-    sampled: bool = False
-    """Set once the fit is done: a Ctrl-C while writing then keeps the finished chains."""
-    finished: tuple[list[SpCoResult], int, list[str]] | None = None
-    """Every fit's result, the one kept and the warnings said before the writing
-    (:mod:`.fit_finished`)."""
-    said: list[str] = dataclasses.field(default_factory=list)
-    """The warnings the command gave so far, as printed (:mod:`spcopyro.cli.fit_warnings`):
-    ``config.json``'s ``"warnings"``."""
 
 
 def run_fit(args: argparse.Namespace) -> int:

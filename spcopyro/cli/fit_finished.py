@@ -51,8 +51,7 @@ from spcopyro._util.digests import file_sha256
 from spcopyro.cli.fit_resume import keeps_finished_fit
 
 if TYPE_CHECKING:
-    from typing import Any as FitJob  # spcopyro.cli.fit.FitJob, which imports this module
-
+    from spcopyro.cli.fit_job import FitJob
     from spcopyro.config import SpCoSettings
     from spcopyro.data import House
     from spcopyro.results.result import SpCoResult

@@ -30,9 +30,8 @@ from spcopyro.maps import save_map
 from spcopyro.results.specks import in_use_text
 
 if TYPE_CHECKING:
-    from typing import Any as FitJob  # spcopyro.cli.fit.FitJob, which imports this module
-
     from spcopyro.cli.fit_figures import FigurePrefetch
+    from spcopyro.cli.fit_job import FitJob
     from spcopyro.gibbs.convergence import ConvergenceDiagnostics
     from spcopyro.results.result import SpCoResult
 
@@ -41,7 +40,7 @@ __all__ = ["Fitted", "write_outputs"]
 
 @dataclasses.dataclass
 class Fitted:
-    """What the fit of a :class:`~spcopyro.cli.fit.FitJob` gave, before anything is written:
+    """What the fit of a :class:`~spcopyro.cli.fit_job.FitJob` gave, before anything is written:
     what :func:`write_outputs` writes."""
 
     result: SpCoResult
