@@ -94,7 +94,11 @@ def expected_agreements(assignments: torch.Tensor, pairs: torch.Tensor) -> torch
     """E_q[E(C)] = sum over neighbour pairs (a, b) of sum_l q_a(l) q_b(l); E(C) for labels."""
     if _is_hard(assignments):
         return potts_agreements(assignments, pairs)
-    return (assignments[pairs[:, 0]] * assignments[pairs[:, 1]]).sum().to(DTYPE)
+    # index_select, not assignments[pairs[:, 0]]: the same [P, L] rows, and its gradient is an
+    # index_add_ (rows added in the same order, so the same bits) where advanced indexing's is an
+    # index_put_ with accumulate, the slower of the two (SVI's backward through q, 2026-12-06)
+    first = assignments.index_select(0, pairs[:, 0])  # [P, L]
+    return (first * assignments.index_select(0, pairs[:, 1])).sum().to(DTYPE)
 
 
 class ConceptStatistics(NamedTuple):
