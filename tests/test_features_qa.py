@@ -288,6 +288,32 @@ def test_an_out_that_cannot_be_written_is_refused_before_any_work(images_dir, tm
     assert out.read_text() == "1.0,1.0\n" and [p.name for p in out.parent.iterdir()] == ["Ft.csv"]
 
 
+def test_image_lists_name_one_entry_over_the_limit_instead_of_counting_it(tmp_path):
+    """The missing images of a labels file (5 named) and the unreadable images (20 named) ended
+    "; ... and 1 more" where one over the limit: a phrase as long as the entry it hid
+    (messages.shown_count, as listed does since 43376ef)."""
+    from spcopyro.features.images import UnreadableImagesError, read_labelled_images
+
+    labels = tmp_path / "labels.csv"
+    gone = [f"images/gone{i}.png" for i in range(6)]
+    labels.write_text(
+        "".join(f"{g},{'kitchen' if i % 2 else 'bedroom'}\n" for i, g in enumerate(gone))
+    )
+    with pytest.raises(FileNotFoundError) as info:
+        read_labelled_images(labels)
+    message = str(info.value)
+    assert "6 of 6 image(s) not found (line 1: " in message and "... and" not in message
+    assert f"line 6: {tmp_path / 'images' / 'gone5.png'}); an IMAGE" in message
+    labels.write_text(labels.read_text() + "images/gone6.png,kitchen\n")
+    with pytest.raises(FileNotFoundError, match=r"gone4\.png; \.\.\. and 2 more\); an IMAGE"):
+        read_labelled_images(labels)
+    failures = [(Path(f"{i:05d}.jpg"), "not an image") for i in range(21)]
+    message = str(UnreadableImagesError(failures, 30))
+    assert message.endswith("00020.jpg: not an image") and "... and" not in message
+    message = str(UnreadableImagesError([*failures, (Path("x.jpg"), "cut")], 30))
+    assert message.endswith("00019.jpg: not an image; ... and 2 more")
+
+
 def test_a_labels_file_names_its_missing_images_and_needs_two_places(tmp_path, images_dir):
     # A missing image was reported as "a_color.jpg: image file not found", with no word of the
     # labels file, its line, or that IMAGE is relative to the labels file's folder; labels of

@@ -826,6 +826,21 @@ def test_a_folder_of_bags_names_what_it_holds(tmp_path, map_yaml):
         import_bags([tmp_path / "maps"], map_yaml, tmp_path / "d" / "h2")  # no bag inside
 
 
+def test_a_folder_of_six_bags_names_them_all(tmp_path, map_yaml):
+    """The folder's list showed 5 names and " ...": a sixth piece was hidden behind as much text
+    as its name, and more than six were not counted (messages.listed: all six named, seven as
+    five and "(2 more)")."""
+    folder = tmp_path / "bags"
+    folder.mkdir()
+    for i in range(6):
+        (folder / f"t{i}.bag").write_bytes(b"")
+    with pytest.raises(BagFormatError, match=r"it holds t0\.bag, .*, t5\.bag: give the bags"):
+        import_bags([folder], map_yaml, tmp_path / "d" / "h")
+    (folder / "t6.bag").write_bytes(b"")
+    with pytest.raises(BagFormatError, match=r"t4\.bag, \.\.\. \(2 more\): give the bags"):
+        import_bags([folder], map_yaml, tmp_path / "d" / "h")
+
+
 def test_simulate_bag_into_a_file_says_so(tmp_path, capsys):
     """QA: simulate-bag --out FILE said "[Errno 17] File exists: 'FILE'", and --out FILE/x
     "[Errno 20] Not a directory"."""

@@ -22,7 +22,7 @@ import numpy as np
 import torch
 from torchvision.transforms import InterpolationMode, v2
 
-from spcopyro._util.messages import echo, warn_once
+from spcopyro._util.messages import echo, shown_count, warn_once
 from spcopyro.data import IMAGE_SUFFIXES
 from spcopyro.data.dataset_files import read_pose_file
 from spcopyro.data.text import fold_word
@@ -66,8 +66,9 @@ class UnreadableImagesError(ValueError):
 
     def __init__(self, failures: Sequence[tuple[Path, str]], total: int) -> None:
         self.failures = tuple((Path(p), r) for p, r in failures)
-        listed = "; ".join(f"{p}: {r}" for p, r in self.failures[:20])
-        more = f"; ... and {len(self.failures) - 20} more" if len(self.failures) > 20 else ""
+        named = shown_count(len(self.failures), 20)  # 21 named whole, not "... and 1 more"
+        listed = "; ".join(f"{p}: {r}" for p, r in self.failures[:named])
+        more = f"; ... and {len(self.failures) - named} more" if len(self.failures) > named else ""
         super().__init__(
             f"{len(self.failures)} of {total} image(s) could not be read (nothing was written; "
             f"fix or remove them): {listed}{more}"
@@ -490,8 +491,9 @@ def read_labelled_images(path: str | os.PathLike[str]) -> tuple[list[Path], list
         )
     missing = [(n, p) for n, p in zip(lines, paths, strict=True) if not p.exists()]
     if missing:
-        listed = "; ".join(f"line {n}: {p}" for n, p in missing[:5])
-        more = f"; ... and {len(missing) - 5} more" if len(missing) > 5 else ""
+        named = shown_count(len(missing), 5)  # 6 named whole, not "... and 1 more"
+        listed = "; ".join(f"line {n}: {p}" for n, p in missing[:named])
+        more = f"; ... and {len(missing) - named} more" if len(missing) > named else ""
         raise FileNotFoundError(
             f"{path}: {len(missing)} of {len(paths)} image(s) not found ({listed}{more}); an "
             f"IMAGE that is not absolute is relative to the labels file's folder, "

@@ -30,6 +30,7 @@ from typing import Any
 
 import numpy as np
 
+from spcopyro._util.messages import listed as listed_names
 from spcopyro.robot.rosbag.mcap_schemas import schemas_without_data_as_none
 from spcopyro.robot.rosbag.poses import (
     PoseTrack,
@@ -154,7 +155,7 @@ def open_bag(path: str | os.PathLike[str], ros_distro: str = DEFAULT_ROS_DISTRO)
             if (p.is_file() and p.suffix in (".bag", ".db3", ".mcap"))
             or (p / "metadata.yaml").is_file()
         )
-        listed = f"; it holds {', '.join(inside[:5])}{' ...' if len(inside) > 5 else ''}"
+        listed = f"; it holds {listed_names(inside, 5)}"
         pieces = [n for n in inside if n.endswith((".db3", ".mcap"))]
         if len(pieces) > 1:  # a split recording stopped before rosbag2 wrote metadata.yaml
             hint = (
