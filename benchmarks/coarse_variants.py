@@ -84,19 +84,15 @@ references at the same sweeps), then the variants by the prior that they could r
 top-1 (finer concepts around where words were said) without losing the places."""
 
 
-def fit_variant(house, name: str, sweeps: int, seed: int):
-    """The variant's fit (``real_houses.fit_result``): its preset's settings with the overrides,
-    and the preset's recommended inference settings (``coarse``'s rooms start, merge and region
-    moves, point estimate and ``--refine auto``; ``paper-dp``'s paper run)."""
-    base, overrides = VARIANTS[name]
-    return rh.fit_result(house, base, sweeps, seed, **overrides)[0]
-
-
 def public_scores(house, truth: np.ndarray, name: str, sweeps: int, seed: int) -> dict:
-    """ARI, largest share, concepts >= 1 % of a fit on every trial; whether it was refined."""
+    """ARI, largest share, concepts >= 1 % of the variant's fit on every trial
+    (``real_houses.fit_result``: its preset's settings with the overrides, and the preset's
+    recommended inference settings), on the map's cells of the variant's grid; whether it was
+    refined."""
+    base, overrides = VARIANTS[name]
     start = time.perf_counter()
-    result = fit_variant(house, name, sweeps, seed)
-    labels = rh.on_map(result, house, VARIANTS[name][0])
+    result = rh.fit_result(house, base, sweeps, seed, **overrides)[0]
+    labels = rh.on_map(result, house, base, **overrides)  # a cell_size override: its grid
     refined = coarse_stage(result.inference) is not None
     return {**rh.scores(labels, truth, house.grid.free), "refined": refined,
             "seconds": time.perf_counter() - start}  # fmt: skip
