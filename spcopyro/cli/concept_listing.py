@@ -13,7 +13,7 @@ from spcopyro.results.concept_words import (
     format_concept_words,
     format_words_heard,
     is_speck,
-    shown_top_words,
+    shown_words,
     speck_summary,
 )
 from spcopyro.results.specks import support_text
@@ -49,7 +49,7 @@ def print_concepts(
     for concept in listed[:limit]:
         heard = concept["words_heard"]
         words = format_concept_words(
-            shown_top_words(result, int(concept["concept"]), len(concept["top_words"]) or 1),
+            shown_words([(w, p) for w, p in concept["top_words"]], result.w[concept["concept"]]),
             [(w, r, p) for w, r, p in concept["distinctive_words"]],
             heard,
         )
