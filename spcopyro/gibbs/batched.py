@@ -57,7 +57,7 @@ import torch
 
 from spcopyro.config import SpCoConfig
 from spcopyro.gibbs.state import GibbsState, make_sweep_plan
-from spcopyro.model import DTYPE, ModelData
+from spcopyro.model import DTYPE, ModelData, potts_agreements
 
 
 class BatchedState(NamedTuple):
@@ -424,12 +424,12 @@ def trace_batched(
     nats, and so did the log joint a float32 run recorded."""
     f64 = torch.float64
     cells, per_modality = concept_counts(state.labels, plan, config.num_concepts)  # [B, L], ...
-    agreements = (state.labels[:, plan.pairs[:, 0]] == state.labels[:, plan.pairs[:, 1]]).sum(-1)
+    agreements = potts_agreements(state.labels, plan.pairs)  # [B] float64
     log_pi = state.log_pi.to(f64)  # [B, L]
     total = (config.pi_concentration - 1) * log_pi.sum(-1)  # [B] float64
     for a, counts, log_phi in zip(plan.concentrations, per_modality, state.log_emissions,
                                   strict=True):  # fmt: skip
         log_phi = log_phi.to(f64)  # [B, L, K_m]
         total = total + (a - 1) * log_phi.sum((-1, -2)) + (counts.to(f64) * log_phi).sum((-1, -2))
-    total = total + (cells.to(f64) * log_pi).sum(-1) + config.gamma * agreements.to(f64)
+    total = total + (cells.to(f64) * log_pi).sum(-1) + config.gamma * agreements
     return total, (cells > 0).sum(-1)
