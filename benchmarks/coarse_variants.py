@@ -87,12 +87,11 @@ top-1 (finer concepts around where words were said) without losing the places.""
 def public_scores(house, truth: np.ndarray, name: str, sweeps: int, seed: int) -> dict:
     """ARI, largest share, concepts >= 1 % of the variant's fit on every trial
     (``real_houses.fit_result``: its preset's settings with the overrides, and the preset's
-    recommended inference settings), on the map's cells of the variant's grid; whether it was
-    refined."""
+    recommended inference settings), on the map's cells; whether it was refined."""
     base, overrides = VARIANTS[name]
     start = time.perf_counter()
     result = rh.fit_result(house, base, sweeps, seed, **overrides)[0]
-    labels = rh.on_map(result, house, base, **overrides)  # a cell_size override: its grid
+    labels = rh.on_map(result, house)
     refined = coarse_stage(result.inference) is not None
     return {**rh.scores(labels, truth, house.grid.free), "refined": refined,
             "seconds": time.perf_counter() - start}  # fmt: skip

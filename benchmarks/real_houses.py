@@ -66,7 +66,7 @@ from spcopyro.experiments.open_plan import observation_oracle
 from spcopyro.experiments.public_truth import public_truth
 from spcopyro.experiments.table import PUBLIC_CATEGORIES, heldout_folds
 from spcopyro.fit.house import fit_house, preset_fit_kwargs
-from spcopyro.maps.coarse import coarsening_factor, refine_labels
+from spcopyro.maps.coarse import labels_on_grid
 from spcopyro.metrics import (
     WordPredictionScores,
     adjusted_rand_index,
@@ -121,15 +121,11 @@ def fit_result(
     return result, time.perf_counter() - start
 
 
-def on_map(result, house, name: str, **overrides: object) -> np.ndarray:
-    """``[H, W]`` the result's labels on the house's own map cells (a fit the default refined
-    on the map's cells is there already; the cell size of ``name`` with ``overrides`` is the
-    model grid's otherwise)."""
-    labels = result.label_image()
-    if labels.shape == house.grid.shape:
-        return refine_labels(labels, house.grid, 1)
-    factor = coarsening_factor(house.grid.resolution, preset(name, **overrides).data.cell_size)
-    return refine_labels(labels, house.grid, factor)
+def on_map(result, house) -> np.ndarray:
+    """``[H, W]`` the result's labels on the house's own map cells
+    (:func:`~spcopyro.maps.coarse.labels_on_grid`: a fit refined on the map's cells is there
+    already, a fit on a model grid is refined from the grid it ran on, ``result.grid``)."""
+    return labels_on_grid(result.label_image(), house.grid, result.grid.resolution)
 
 
 def fit_preset(
@@ -138,7 +134,7 @@ def fit_preset(
     """``[H, W]`` label image of the preset's default fit (:func:`fit_result`, with
     ``overrides``: a variant of it) on the house's map, and seconds."""
     result, seconds = fit_result(house, name, sweeps, seed, **overrides)
-    return on_map(result, house, name, **overrides), seconds
+    return on_map(result, house), seconds
 
 
 def scores(labels: np.ndarray, truth: np.ndarray, free: np.ndarray) -> dict[str, float]:
@@ -164,7 +160,7 @@ def score_house(
     rows: dict[str, dict] = {}
     for name in PRESETS:
         result, seconds = fit_result(house, name, sweeps, seed)
-        rows[name] = {**scores(on_map(result, house, name), truth, free), "seconds": seconds}
+        rows[name] = {**scores(on_map(result, house), truth, free), "seconds": seconds}
         print(f"  {house.name} {name}: ARI {rows[name]['ari']:.3f}", file=sys.stderr, flush=True)
         if name == DEFAULT_PRESET:  # and the same chain without the refinement
             rows[UNREFINED] = rows[name]
@@ -174,7 +170,7 @@ def score_house(
             rows[name] = {**rows[name], "refined": refined, "explained": explained}
             if rows[name]["refined"]:
                 result, seconds = fit_result(house, UNREFINED, sweeps, seed)
-                labels = on_map(result, house, DEFAULT_PRESET)
+                labels = on_map(result, house)
                 rows[UNREFINED] = {**scores(labels, truth, free), "seconds": seconds}
     return rows | baseline_scores(house, truth, oracle)
 
@@ -361,7 +357,7 @@ def methods_on(house, truth: np.ndarray, iterations: int) -> dict[str, dict]:
     out = {}
     for method in METHODS:
         result, seconds = fit_result(house, DEFAULT_PRESET, iterations, 0, method=method)
-        labels = on_map(result, house, DEFAULT_PRESET)
+        labels = on_map(result, house)
         out[method] = {**scores(labels, truth, house.grid.free), "seconds": seconds}
         print(f"  {house.name} {method}: ARI {out[method]['ari']:.3f}", file=sys.stderr, flush=True)
     return out

@@ -62,7 +62,7 @@ def two_stage(house, sweeps: int, seed: int):
 def fit_labels(house, name: str, sweeps: int, seed: int) -> np.ndarray:
     result = fit_house(house, preset(name), sweeps=sweeps, seed=seed, progress=False,
                        **preset_fit_kwargs(name))  # fmt: skip
-    return on_map(result, house, name)
+    return on_map(result, house)
 
 
 def compare(house, truth: np.ndarray, sweeps: int, seed: int) -> dict[str, dict]:
@@ -73,7 +73,7 @@ def compare(house, truth: np.ndarray, sweeps: int, seed: int) -> dict[str, dict]
     rows["coarse 2x"] = scores(fit_labels(house, DEFAULT_PRESET, 2 * sweeps, seed), truth, free)
     fit = two_stage(house, sweeps, seed)
     rows["two-stage"] = {
-        **scores(on_map(fit.result, house, DEFAULT_PRESET), truth, free),
+        **scores(on_map(fit.result, house), truth, free),
         "explained": fit.separation.explained,
         "kappa_within": fit.separation.kappa_within,
         "kappa_whole": fit.separation.kappa_whole,
