@@ -192,7 +192,7 @@ def row_names(rows: Sequence[dict[str, object]]) -> dict[tuple[str, str], str]:
     the legend of quality_time.png), each of them with what its variant sets (``gibbs
     (gamma=3.0)``, the one that sets nothing left bare), or, where even that is shared,
     ``variant / method``. Both figures name their rows with it, over the whole table."""
-    groups = {(str(r["variant"]), str(r["method"])): r for r in rows}  # the first row of each
+    groups = {(str(r["variant"]), str(r["method"])): r for r in rows}  # a row of each (the last)
     names = {group: row_name(*group) for group in groups}
     for name in set(names.values()):
         twins = [group for group in groups if names[group] == name]
