@@ -89,6 +89,16 @@ def test_unplaced_utterances_and_word_list_length():
         degenerate_map_warning(labels, cells[:2], xy, utterances)
 
 
+def test_one_word_over_the_limit_is_named_not_counted():
+    """shown_count's rule: "and 1 more" takes as much of the line as the word it hides."""
+    labels = np.zeros(20, dtype=np.int64)
+    words = [f"w{k}" for k in range(NAMED_WORDS + 1)]
+    cells = np.arange(len(words))
+    xy = np.array([[float(k), 0.0] for k in range(len(words))])
+    warning = degenerate_map_warning(labels, cells, xy, [(w,) for w in words])
+    assert f"{words[-1]} (1)" in warning and "more" not in warning
+
+
 def test_fit_house_logs_the_warning_of_a_one_concept_map(caplog):
     """A real fit with one concept (L = 1) on a small synthetic house of three named rooms."""
     house = make_house(seed=1, spec=HouseSpec(height=40, width=50, num_rooms=3, num_trials=1))

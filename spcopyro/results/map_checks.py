@@ -40,7 +40,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from spcopyro._util.context import set_within
-from spcopyro._util.messages import setting
+from spcopyro._util.messages import setting, shown_count
 from spcopyro.config import DEFAULT_PRESET
 
 if TYPE_CHECKING:
@@ -88,7 +88,8 @@ DEGENERATE_PATCHES = 0.2
 concept are small patches, not the rooms those words name. Measured: 2-18% on CAVI's maps above
 (largest concept over 57%); 52-81% on the good maps (the named rooms beside the largest)."""
 NAMED_WORDS = 8
-"""The warning names at most this many words, most heard first."""
+"""The warning names at most this many words, most heard first (all of them where one is over:
+naming it takes no more room than "and 1 more")."""
 WARNING_START = "one concept ("
 """How :func:`degenerate_map_warning`'s message begins, either form (a report that counts the
 collapsed maps among a study's warnings reads it: :func:`is_degenerate_map_warning`)."""
@@ -252,14 +253,16 @@ def _apart(heard: dict[str, list[int]], xy: np.ndarray) -> float:
 
 
 def _named(heard: dict[str, list[int]], detail: Callable[[list[int]], str] | None = None) -> str:
-    """The words, most heard first (stable), at most :data:`NAMED_WORDS`: "kitchen (3), ..."
+    """The words, most heard first (stable), at most :data:`NAMED_WORDS` (all of them where one
+    is over: :func:`~spcopyro._util.messages.shown_count`): "kitchen (3), ..."
     (``detail(us)``: "kitchen (3 in ...)")."""
     ranked = sorted(heard.items(), key=lambda item: -len(item[1]))
+    shown = shown_count(len(ranked), NAMED_WORDS)
     named = ", ".join(
         f"{word} ({len(us)}{'' if detail is None else ' ' + detail(us)})"
-        for word, us in ranked[:NAMED_WORDS]
+        for word, us in ranked[:shown]
     )
-    more = len(ranked) - NAMED_WORDS
+    more = len(ranked) - shown
     return named + (f", and {more} more" if more > 0 else "")
 
 
