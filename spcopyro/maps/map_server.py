@@ -299,9 +299,10 @@ def stage_map(
     when a :class:`~spcopyro._util.file_moves.FilesNotMoved` left an old map file in it
     (``stranded``: the error names it). The same bytes as :func:`save_map` at ``yaml_path``."""
     from spcopyro._util.file_moves import FilesNotMoved
+    from spcopyro._util.folder_commit import absolute_path  # secrets: not on --help's path
     from spcopyro._util.outputs import staging_folder  # zipfile, secrets: not on --help's path
 
-    target = Path(os.path.abspath(_yaml_target(yaml_path)))
+    target = absolute_path(_yaml_target(yaml_path))
     folder = staging_folder(target)
     image = target.with_suffix(".pgm")
     keep = False

@@ -63,7 +63,7 @@ from typing import Any
 
 import numpy as np
 
-from spcopyro._util.folder_commit import commit_folder
+from spcopyro._util.folder_commit import absolute_path, commit_folder
 from spcopyro._util.interrupts import remove_tree
 from spcopyro._util.outputs import staging_folder
 from spcopyro._util.progress import clears_when_done, progress_enabled
@@ -483,7 +483,7 @@ def import_bags(
             for bag in bags
         ]
         grid = load_map(map_yaml)
-        out = Path(os.path.abspath(out))
+        out = absolute_path(out)
         earlier = check_out(out, overwrite, range(first_trial, first_trial + len(bags)))
         map_target = out.parent / "map" / f"{out.name}.yaml"
         map_replaced = check_map(map_target, grid, map_yaml, overwrite, out, earlier)
