@@ -28,6 +28,7 @@ import numpy as np
 
 from spcopyro._util.context import set_within
 from spcopyro._util.messages import echo
+from spcopyro.config import HYPERPARAMETER_FIELDS
 from spcopyro.data.text import _check_tokens, hidden_words_warning, tokenize
 
 logger = logging.getLogger("spcopyro")
@@ -40,7 +41,7 @@ RESERVED_MODALITY_NAMES = ("images", "words")  # the two modalities Observations
 SITE_NAMES_TAKEN = (
     "labels", "pi", "theta", "w", "potts",  # the model's sites
     "cells", "concepts", "observed_cells",  # its plates
-    "log_joint", "num_concepts", "alpha", "gamma", "chi", "beta",  # SpCoGibbs' saved sites
+    "log_joint", "num_concepts", *HYPERPARAMETER_FIELDS,  # SpCoGibbs' saved sites
 )  # fmt: skip
 """The model's latent sites and plates (spcopyro.model) and the Gibbs kernel's diagnostics and
 sampled hyperparameters in ``mcmc.get_samples()``: a modality's observation site ``<name>`` must
