@@ -378,10 +378,10 @@ def test_the_refusals_naming_the_negate_line_read_the_map_image_once(tmp_path, m
     image[10:90, 10:90] = 254  # the room, x and y 0.5..4.5 m
     grid = load_map(_plan(tmp_path, image, negate=1))
     images, yamls = [], []
-    read_levels, read_yaml = free_space._read_levels, free_space._read_map_yaml
+    read_levels, read_yaml = free_space._read_levels, free_space.read_map_yaml
     monkeypatch.setattr(free_space, "_read_levels", lambda s: images.append(s) or read_levels(s))
     monkeypatch.setattr(
-        free_space, "_read_map_yaml", lambda p, **k: yamls.append(p) or read_yaml(p, **k)
+        free_space, "read_map_yaml", lambda p, **k: yamls.append(p) or read_yaml(p, **k)
     )
     obs = _observations(np.array([[1.0 + 0.3 * i, 2.5 if room else 20.0] for i in range(10)]))
     report = cell_counts(grid, obs, warn=False).placement

@@ -615,12 +615,12 @@ def test_an_image_of_another_suffix_in_a_windows_path_or_folder_is_found(tmp_pat
 def test_a_second_read_of_a_map_yaml_warns_of_nothing(tmp_path, caplog):
     """free_space re-reads the yaml load_map has read (warn=False); it silenced the duplicate
     warnings by disabling load_map's logger process-wide, other threads' warnings with them."""
-    from spcopyro.maps.map_yaml import _read_map_yaml
+    from spcopyro.maps.map_yaml import read_map_yaml
 
     path = write_map(tmp_path, resolution="50", free_thresh="-0.1", negat="0")
     with caplog.at_level(logging.WARNING, logger="spcopyro"):
-        _read_map_yaml(path, warn=False)
+        read_map_yaml(path, warn=False)
         assert warnings_of(caplog) == []
-        _read_map_yaml(path)
+        read_map_yaml(path)
     said = warnings_of(caplog)
     assert len(said) == 3 and "did you mean 'negate'?" in said[0]

@@ -34,8 +34,10 @@ Not re-exported (import them from their module, ``from spcopyro.maps.grid import
 * :mod:`~spcopyro.maps.grid`: ``MAP_TOLERANCE_CELLS``, ``cells_on_map``, ``describe_map``,
   ``frame_differences``, ``same_frame``, ``same_free_cells``, ``same_origin``,
   ``same_resolution``.
-* :mod:`~spcopyro.maps.map_server`: ``MAX_MAP_COORDINATE``, ``trinary_pixels``.
-* :mod:`~spcopyro.maps.map_yaml`: ``MAX_YAW_NOISE``, ``PLAUSIBLE_RESOLUTION``.
+* :mod:`~spcopyro.maps.map_server`: ``MAX_MAP_COORDINATE``, ``read_occupancy_yaml``,
+  ``trinary_pixels``.
+* :mod:`~spcopyro.maps.map_yaml`: ``MAX_YAW_NOISE``, ``PLAUSIBLE_RESOLUTION``,
+  ``read_map_yaml``.
 * :mod:`~spcopyro.maps.palette`: ``delta_e``, ``delta_e94``, ``srgb_to_lab``.
 """
 

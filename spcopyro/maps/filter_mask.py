@@ -50,7 +50,7 @@ from spcopyro.maps.map_server import (
     _yaml_target,
     trinary_pixels,
 )
-from spcopyro.maps.map_yaml import MapFormatError, _read_map_yaml
+from spcopyro.maps.map_yaml import MapFormatError, read_map_yaml
 
 __all__ = [
     "MASK_FREE_THRESH",
@@ -134,7 +134,7 @@ def load_filter_mask(yaml_path: str | os.PathLike[str]) -> FilterMask:
     Raises:
         MapFileNotFoundError, MapFormatError: as :func:`spcopyro.maps.load_map`.
     """
-    spec = _read_map_yaml(yaml_path)
+    spec = read_map_yaml(yaml_path)
     if spec.mode == "scale" and spec.free_thresh == spec.occupied_thresh:
         raise MapFormatError(
             f"{spec.where('free_thresh')}: key 'free_thresh' {echo(spec.free_thresh)} equals "

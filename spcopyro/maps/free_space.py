@@ -19,7 +19,7 @@ from spcopyro._util.messages import echo
 from spcopyro.maps.grid import OccupancyGrid, cells_on_map
 from spcopyro.maps.map_image import _read_levels
 from spcopyro.maps.map_server import PGM_UNKNOWN, _occupancy
-from spcopyro.maps.map_yaml import MapFormatError, _MapYaml, _read_map_yaml
+from spcopyro.maps.map_yaml import MapFormatError, _MapYaml, read_map_yaml
 
 __all__ = [
     "check_free_cells",
@@ -40,7 +40,7 @@ def _map_spec(grid: OccupancyGrid) -> _MapYaml | None:
     if path is None or path.suffix.lower() not in (".yaml", ".yml"):
         return None
     try:
-        return _read_map_yaml(path, warn=False)  # load_map said its warnings
+        return read_map_yaml(path, warn=False)  # load_map said its warnings
     except (MapFormatError, OSError):
         return None
 

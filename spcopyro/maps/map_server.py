@@ -50,14 +50,14 @@ from spcopyro.maps.map_yaml import (
     MapFileNotFoundError,
     MapFormatError,
     _MapYaml,
-    _read_map_yaml,
     logger,  # this module's name, its filter shows bytes as \xe9
+    read_map_yaml,
 )
 
 __all__ = [
     "MAX_MAP_COORDINATE", "PGM_FREE", "PGM_OCCUPIED", "PGM_UNKNOWN", "SAVE_FREE_THRESH",
-    "SAVE_OCCUPIED_THRESH", "MapFileNotFoundError", "MapFormatError", "load_map", "save_map",
-    "trinary_pixels",
+    "SAVE_OCCUPIED_THRESH", "MapFileNotFoundError", "MapFormatError", "load_map",
+    "read_occupancy_yaml", "save_map", "trinary_pixels",
 ]  # fmt: skip
 
 # Pixel values written by save_map (those of map_server's map_saver).
@@ -101,7 +101,7 @@ def load_map(yaml_path: str | os.PathLike) -> OccupancyGrid:
             key is), the key and the offending value; also a map lying wholly beyond
             :data:`MAX_MAP_COORDINATE` of its frame's origin.
     """
-    spec = _read_occupancy_yaml(yaml_path)
+    spec = read_occupancy_yaml(yaml_path)
     levels, full, jpeg = _read_levels(spec)  # [H, W] or [H, W, C]
     value, p = _occupancy(levels, full, spec.negate)  # [H, W] each
     occupancy = np.full(p.shape, UNKNOWN, dtype=np.int8)  # [H, W]
@@ -142,17 +142,17 @@ _LOADERS = (
     "a Nav2 costmap filter mask (scale or raw) is read with load_filter_mask, a semantic map "
     "saved by save_label_map_server with load_label_map_server"
 )
-"""The end of :func:`_read_occupancy_yaml`'s refusal of a mode: the loaders that read the other
+"""The end of :func:`read_occupancy_yaml`'s refusal of a mode: the loaders that read the other
 modes' maps."""
 
 
-def _read_occupancy_yaml(yaml_path: str | os.PathLike, others: str = _LOADERS) -> _MapYaml:
+def read_occupancy_yaml(yaml_path: str | os.PathLike, others: str = _LOADERS) -> _MapYaml:
     """The yaml of ``yaml_path`` read and refused as :func:`load_map` reads and refuses it, its
     ``mode`` included (only ``trinary``), without its image. The refusal of a mode says the mode
     and, for ``scale``, how a robot's map saved so reads (shared), then ``others``: by default
     the loaders of the other modes' maps; a study's map source is read here with an ending of
     its own (:func:`spcopyro.study.sources.resolve_source`: those loaders read no map source)."""
-    spec = _read_map_yaml(yaml_path, accepts=("trinary",))
+    spec = read_map_yaml(yaml_path, accepts=("trinary",))
     if spec.mode != "trinary":  # raw pixels are cell values (0..100): no trinary reading of them
         raise MapFormatError(
             f"{spec.where('mode')}: key 'mode': {spec.shown_mode()} is not supported by load_map "

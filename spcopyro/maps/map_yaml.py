@@ -1,4 +1,4 @@
-"""ROS map_server yaml files: parsing and validating one (``_read_map_yaml``).
+"""ROS map_server yaml files: parsing and validating one (``read_map_yaml``).
 
 The one reader of a map's yaml for every map loader of the package (:func:`~spcopyro.maps.load_map`,
 :func:`~spcopyro.maps.load_filter_mask`, :func:`~spcopyro.maps.load_label_map_server`): it reads
@@ -28,7 +28,10 @@ if TYPE_CHECKING:
 
 logger = logging.getLogger("spcopyro.maps.map_server")  # load_map's logger, as documented there
 
-__all__ = ["MAX_YAW_NOISE", "PLAUSIBLE_RESOLUTION", "MapFileNotFoundError", "MapFormatError"]
+__all__ = [
+    "MAX_YAW_NOISE", "PLAUSIBLE_RESOLUTION", "MapFileNotFoundError", "MapFormatError",
+    "read_map_yaml",
+]  # fmt: skip
 
 _REQUIRED_KEYS = ("image", "resolution", "origin", "negate", "occupied_thresh", "free_thresh")
 _KNOWN_KEYS = (*_REQUIRED_KEYS, "mode")
@@ -102,7 +105,7 @@ class _MapYaml:
     """``negate`` as written in the yaml (quotes removed), e.g. ``2`` or ``yes``."""
     mode_text: str = field(default="", compare=False)
     """``mode`` as written where it is not map_server's (``SCALE``, ``Raw``) and the mode it
-    looks like is one the caller refuses (``_read_map_yaml``'s ``accepts``), else ""."""
+    looks like is one the caller refuses (``read_map_yaml``'s ``accepts``), else ""."""
 
     def shown_negate(self) -> str:
         """``negate`` for a message: as written where it says what it reads as (``0``, ``1``,
@@ -314,7 +317,7 @@ def _parse_yaml(text: str) -> tuple[Any, Any]:
     return yaml.compose(text, Loader=_map_yaml_loader()), yaml.load(text, Loader=_map_yaml_loader())
 
 
-def _read_map_yaml(
+def read_map_yaml(
     yaml_path: str | os.PathLike, accepts: tuple[str, ...] = _MODES, warn: bool = True
 ) -> _MapYaml:
     """Parse and validate a map_server yaml; errors name the file, line, key and value; its

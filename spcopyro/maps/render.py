@@ -21,7 +21,7 @@ import numpy as np
 from spcopyro.maps.grid import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
 from spcopyro.maps.map_image import _read_image, _write_image
 from spcopyro.maps.map_server import _write_map_yaml, _yaml_target
-from spcopyro.maps.map_yaml import MapFileNotFoundError, MapFormatError, _read_map_yaml
+from spcopyro.maps.map_yaml import MapFileNotFoundError, MapFormatError, read_map_yaml
 
 logger = logging.getLogger(__name__)
 
@@ -233,7 +233,7 @@ def load_label_map_server(yaml_path: str | os.PathLike) -> tuple[np.ndarray, Occ
         MapFormatError: the yaml is not ``mode: raw`` with ``negate: 0``, the sidecar json is
             missing or malformed, or a pixel value is neither a cell code nor a listed grey value.
     """
-    spec = _read_map_yaml(yaml_path, accepts=("raw",))
+    spec = read_map_yaml(yaml_path, accepts=("raw",))
     if spec.mode != "raw" or spec.negate:
         raise MapFormatError(
             f"{spec.where('mode' if spec.mode != 'raw' else 'negate')}: a semantic map needs "

@@ -24,8 +24,8 @@ from spcopyro.data.dataset import is_house_folder, list_houses
 from spcopyro.experiments.public_truth import public_truth
 from spcopyro.experiments.table import PUBLIC_CATEGORIES, heldout_folds
 from spcopyro.maps import load_map
-from spcopyro.maps.map_server import _read_occupancy_yaml
-from spcopyro.maps.map_yaml import MapFormatError, _read_map_yaml
+from spcopyro.maps.map_server import read_occupancy_yaml
+from spcopyro.maps.map_yaml import MapFormatError, read_map_yaml
 from spcopyro.robot.map_simulation import simulate_on_map
 from spcopyro.study.spec import DataSource
 from spcopyro.synthetic import make_house
@@ -63,7 +63,7 @@ def resolve_source(data: DataSource, root: str | Path | None = None) -> DataSour
                                 "St.csv, its map in ../map/NAME.yaml)")  # fmt: skip
     if data.kind == "map":  # every cell of a map that does not read failed at run time
         try:  # read and refused as load_map reads and refuses it, but for the loaders named
-            spec = _read_occupancy_yaml(target, others=_NO_MAP_SOURCE)
+            spec = read_occupancy_yaml(target, others=_NO_MAP_SOURCE)
         except MapFormatError as error:
             raise ValueError(f"data source {data.name!r}: {error}") from None
         image = spec.image
@@ -95,7 +95,7 @@ def _map_files(yaml_path: Path) -> list[Path]:
     map_server reads it), whatever its name and extension; the yaml alone when it does not
     parse or its image is missing (:func:`resolve_source` refuses such a map first)."""
     try:
-        image = _read_map_yaml(yaml_path).image
+        image = read_map_yaml(yaml_path).image
     except MapFormatError:
         return [yaml_path]
     return [yaml_path, image] if image.is_file() else [yaml_path]
