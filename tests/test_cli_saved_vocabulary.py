@@ -40,17 +40,26 @@ def older(result, names: dict[str, str], split: str | None = None):
         v = result.vocabulary.index(split)
         totals = np.append(np.asarray(totals, dtype=np.float64), totals[v] / 2)
         totals[v] /= 2
-    return dataclasses.replace(result, emissions=tuple(tables), word_totals=totals)
+    counts = result.word_counts  # [L, V]
+    if counts is not None and split is not None:
+        v = result.vocabulary.index(split)
+        counts = np.concatenate([counts, counts[:, v : v + 1] / 2], axis=1)  # [L, V + 1]
+        counts[:, v] /= 2
+    return dataclasses.replace(
+        result, emissions=tuple(tables), word_totals=totals, word_counts=counts
+    )
 
 
 def test_a_saved_vocabulary_is_folded_to_todays_words():
-    today = dataclasses.replace(two_rooms(), word_totals=np.array([4.0, 2.0, 6.0]))
+    counts = np.array([[3.0, 0.0, 2.0], [1.0, 2.0, 4.0], [0.0, 0.0, 0.0]])  # [L, V]
+    today = dataclasses.replace(two_rooms(), word_totals=counts.sum(0), word_counts=counts)
     old = older(today, {"kitchen": "Kitchen."}, split="sofa")
     assert old.vocabulary == ("Kitchen.", "bed", "sofa", "SOFA.")
     read, saved = renormalised_result(old)
     assert read.vocabulary == today.vocabulary
     np.testing.assert_allclose(read.w, today.w)
     np.testing.assert_allclose(read.word_totals, today.word_totals)
+    np.testing.assert_allclose(read.word_counts, today.word_counts)
     assert saved.renamed == (("Kitchen.", "kitchen"), ("SOFA.", "sofa"))
     same, nothing = renormalised_result(today)  # today's words: the result itself
     assert same is today and not nothing.renamed

@@ -87,6 +87,7 @@ def test_a_renumbered_result_answers_where_the_same_and_has_the_same_log_joint(h
             assert np.array_equal(new.probabilities[k], old.probabilities[l]), old.name
         assert np.array_equal(moved.marginals[:, k], fitted.marginals[:, l])
         assert np.array_equal(moved.concept_totals[k], fitted.concept_totals[l])
+        assert np.array_equal(moved.word_counts[k], fitted.word_counts[l])
     for word in fitted.vocabulary:
         before, after = fitted.where(word), moved.where(word)
         assert after.concept == perm[before.concept], word

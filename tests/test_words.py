@@ -109,6 +109,13 @@ def test_a_gibbs_result_reports_posterior_means_not_draws(small_house):
     totals = concept_totals(result.labels, data, settings.model)
     np.testing.assert_array_equal(result.concept_totals, totals)
     assert totals[:, 0].sum() == len(data.obs_cells)  # every observed cell in one concept
+    # each word's count in each concept: n_lv of w's mean, adding up to the concepts' totals
+    counts = result.word_counts  # [L, V]
+    words = data.modality("words").counts.numpy()  # [M, V]
+    observed = result.labels[data.obs_cells.numpy()]  # [M]
+    np.testing.assert_allclose(counts[3], words[observed == 3].sum(0))
+    np.testing.assert_allclose(counts.sum(1), totals[:, 2])
+    np.testing.assert_allclose(counts.sum(0), result.word_totals)
     sampled = fit_house(small_house, settings, options=options, sweeps=20, progress=False,
                         marginal_samples=5)  # fmt: skip
     assert "averaged over 5 label samples" in sampled.inference["parameters"]
@@ -400,3 +407,47 @@ def test_a_word_never_heard_in_a_concept_is_not_listed_among_its_words(tmp_path,
     drawn = np.array([0.64, 0.33, 0.011, 0.01, 0.009])
     top = list(zip("abc", drawn[:3], strict=True))
     assert [w for w, _ in shown_words(top, drawn)] == ["a", "b", "c"]
+
+
+def test_a_word_heard_as_rarely_as_the_rarest_is_listed(tmp_path, capsys):
+    """Every word heard in the left room, bed and sofa once each: their posterior mean (1.1 / 6.3)
+    is the row's minimum, shared by two words, which :func:`prior_share` reads as the share of
+    a word never heard there; the listing, the legend, the map's labels and ``where`` said
+    "kitchen 0.65" alone. The result keeps each word's count in each concept
+    (``word_counts``), so a heard word stays; a result saved without them reads as before."""
+    from spcopyro.cli.main import main
+    from spcopyro.figures.map_pieces import concept_handles
+    from spcopyro.results.concept_words import heard_words
+
+    counts = np.array([[4.0, 1.0, 1.0], [0.0, 4.0, 2.0], [0.0, 0.0, 0.0]])  # [L, V]
+    w = (counts + 0.1) / (counts.sum(1, keepdims=True) + 3 * 0.1)  # [L, V]
+    base = two_rooms()
+    result = dataclasses.replace(
+        base,
+        emissions=(base.emissions[0], EmissionTable("words", WORDS, w)),
+        concept_totals=np.array([[3.0, 3.0, 6.0], [2.0, 2.0, 6.0], [0.0, 0.0, 0.0]]),
+        word_counts=counts,
+        inference={"parameters": "posterior mean given the point labels"},
+    )
+    assert heard_words(result, 0) == {"kitchen", "bed", "sofa"}
+    assert heard_words(result, 1) == {"bed", "sofa"} and heard_words(base, 0) is None
+    assert shown_top_words(result, 0, 3) == result.top_words(0, 3)
+    print_concepts(result)
+    (left,) = [line for line in capsys.readouterr().out.splitlines() if "concept   0:" in line]
+    assert "6 words  kitchen 0.65, bed 0.17, sofa 0.17" in left, left
+    assert region_text(result, 0).splitlines()[1:] == ["kitchen 0.65 x1.9", "bed 0.17", "sofa 0.17"]
+    labels = [h.get_label() for h in concept_handles(result, np.zeros((3, 3), dtype=np.uint8))]
+    assert labels[0].startswith("[0] 150 cells, 6 words heard: kitchen 0.65, bed 0.17, sofa 0.17")
+    saved = result.save(tmp_path / "fit")
+    assert main(["where", str(saved), "kitchen"]) == 0
+    assert "its words: kitchen (0.65), bed (0.17), sofa (0.17)" in capsys.readouterr().out
+    loaded = SpCoResult.load(saved)
+    np.testing.assert_array_equal(loaded.word_counts, counts)
+    assert shown_top_words(loaded, 0, 3) == result.top_words(0, 3)
+    # a fit saved before the counts were kept: loads, and its lists read as they did
+    with np.load(saved / "result.npz") as z:
+        arrays = {k: z[k] for k in z.files if k != "word_counts"}
+    np.savez(saved / "result.npz", **arrays)
+    old = SpCoResult.load(saved)
+    assert old.word_counts is None
+    assert [w for w, _ in shown_top_words(old, 0, 3)] == ["kitchen"]

@@ -12,6 +12,7 @@ from spcopyro.results.concept_words import (
     cells_range,
     format_concept_words,
     format_words_heard,
+    heard_words,
     is_speck,
     shown_words,
     speck_summary,
@@ -49,7 +50,11 @@ def print_concepts(
     for concept in listed[:limit]:
         heard = concept["words_heard"]
         words = format_concept_words(
-            shown_words([(w, p) for w, p in concept["top_words"]], result.w[concept["concept"]]),
+            shown_words(
+                [(w, p) for w, p in concept["top_words"]],
+                result.w[concept["concept"]],
+                heard_words(result, concept["concept"]),
+            ),
             [(w, r, p) for w, r, p in concept["distinctive_words"]],
             heard,
         )

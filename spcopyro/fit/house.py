@@ -83,7 +83,11 @@ from spcopyro.maps.free_space import check_free_cells
 from spcopyro.model import ModelData, check_concentration_names, make_model_data
 from spcopyro.results.map_checks import coverage_warning, house_map_warning
 from spcopyro.results.point_estimate import check_point_estimate
-from spcopyro.results.posterior_means import concept_totals, with_posterior_means
+from spcopyro.results.posterior_means import (
+    concept_totals,
+    concept_word_counts,
+    with_posterior_means,
+)
 from spcopyro.results.result import SpCoResult
 
 logger = logging.getLogger("spcopyro")
@@ -235,7 +239,8 @@ def result_of(
     :func:`provenance`). A sampler's drawn pi and emissions are replaced by their posterior means
     given its labels (:mod:`spcopyro.results.posterior_means`; a variational method's are E_q
     already), under the posterior means of any hyperparameters the chain sampled;
-    the result records each concept's observed cells and counts under the point labels."""
+    the result records each concept's observed cells and counts (and each word's count in it)
+    under the point labels."""
     if output.parameters_drawn:
         config = config_at_posterior_mean(settings.model, output.options.get("hyperparameters"))
         output = with_posterior_means(output, data, config)
@@ -246,6 +251,7 @@ def result_of(
         provenance=record,
         concept_totals=concept_totals(output.labels, data, settings.model),
         word_totals=data.modality(WORDS).counts.sum(0).numpy(),  # [V] over the observed cells
+        word_counts=concept_word_counts(output.labels, data, settings.model),  # [L, V]
     )  # fmt: skip
 
 

@@ -25,7 +25,7 @@ something learnt.
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Collection, Sequence
 
 import numpy as np
 
@@ -40,6 +40,7 @@ __all__ = [
     "distinctive_items",
     "format_concept_words",
     "format_words_heard",
+    "heard_words",
     "item_marginal",
     "lift",
     "near_uniform",
@@ -124,37 +125,57 @@ def distinctive_items(
 
 
 def shown_words(
-    top: Sequence[tuple[str, float]], row: np.ndarray | None = None
+    top: Sequence[tuple[str, float]],
+    row: np.ndarray | None = None,
+    heard: Collection[str] | None = None,
 ) -> list[tuple[str, float]]:
     """The ``(word, p)`` of ``top`` worth printing at two decimals, the first always (the
     listing, the map's legend and labels and ``where`` use it). Left out: a word whose
     probability rounds to 0.00 ("bedroom 0.56, bed 0.42, entrance 0.00" read as a third word of
     the place), and, given the concept's whole ``row`` ``[V]``, a word at :func:`prior_share`:
     never heard there ("bathroom 0.57, bathtub 0.29, restroom 0.01", restroom one of 15 words
-    at the prior's 0.1 / 10.7, first of them by tie order only)."""
+    at the prior's 0.1 / 10.7, first of them by tie order only). ``heard``: the words heard in
+    the concept, where the result knows them (:func:`heard_words`): a word among them is heard
+    even at the row's minimum (every word heard, two of them as often as each other)."""
     floor = None if row is None else prior_share(row)
-    return [
-        (w, p)
-        for w, p in top
-        if round(p, 2) > 0 and (floor is None or round(p, RANK_DECIMALS) != floor)
-    ] or list(top[:1])
+
+    def unheard(word: str, p: float) -> bool:
+        at_floor = floor is not None and round(p, RANK_DECIMALS) == floor
+        return at_floor and (heard is None or word not in heard)
+
+    return [(w, p) for w, p in top if round(p, 2) > 0 and not unheard(w, p)] or list(top[:1])
+
+
+def heard_words(result, concept: int) -> frozenset[str] | None:
+    """The words heard in concept ``concept``'s region of ``result`` (an
+    :class:`~spcopyro.results.result.SpCoResult`): those of count above 0 in its
+    ``word_counts``; None when the result does not keep them (one saved before it did)."""
+    counts = getattr(result, "word_counts", None)  # [L, V] or None
+    if counts is None:
+        return None
+    row = np.asarray(counts)[concept]  # [V]
+    return frozenset(word for word, n in zip(result.vocabulary, row, strict=True) if n > 0)
 
 
 def shown_top_words(result, concept: int, n: int) -> list[tuple[str, float]]:
     """:func:`shown_words` of concept ``concept``'s ``n`` most probable words of ``result`` (an
-    :class:`~spcopyro.results.result.SpCoResult`), given its row ``result.w[concept]`` ``[V]``:
-    the words fit's listing, the map's legend and labels and ``where`` print."""
-    return shown_words(result.top_words(concept, n), result.w[concept])
+    :class:`~spcopyro.results.result.SpCoResult`), given its row ``result.w[concept]`` ``[V]``
+    and its :func:`heard_words`: the words fit's listing, the map's legend and labels and
+    ``where`` print."""
+    return shown_words(
+        result.top_words(concept, n), result.w[concept], heard_words(result, concept)
+    )
 
 
 def prior_share(row: np.ndarray) -> float | None:
     """The probability of a word never heard in a concept whose distribution is ``row`` ``[V]``
-    (rounded to :data:`RANK_DECIMALS`), or None when no word need be. The words' counts are not
-    kept with a result, so the share is read from the row: its minimum, when two or more words
-    share it and some word lies above it. Under a posterior mean ``(beta + n_lv) / (V beta +
-    n_l)`` every unheard word has that minimum, ``beta / (V beta + n_l)``; heard words tied at
-    the minimum count are read as unheard too (rare beside a vocabulary's unheard words), and a
-    draw's row (no two words equal) has none."""
+    (rounded to :data:`RANK_DECIMALS`), or None when no word need be, read from the row: its
+    minimum, when two or more words share it and some word lies above it. Under a posterior
+    mean ``(beta + n_lv) / (V beta + n_l)`` every unheard word has that minimum, ``beta / (V beta
+    + n_l)``, and a draw's row (no two words equal) has none. Heard words tied at the minimum
+    count share it too (every word heard, the rarest twice or more): :func:`shown_words` keeps
+    them where the result kept its counts (:func:`heard_words`); a result saved without them
+    reads them as unheard, as it always did."""
     rounded = np.round(np.asarray(row, dtype=np.float64), RANK_DECIMALS)  # [V]
     if rounded.size < 2:
         return None

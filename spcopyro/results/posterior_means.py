@@ -47,7 +47,7 @@ import dataclasses
 import numpy as np
 import torch
 
-from spcopyro.config import SpCoConfig
+from spcopyro.config import WORDS, SpCoConfig
 from spcopyro.inference.protocol import InferenceOutput
 from spcopyro.likelihood import concept_statistics
 from spcopyro.model import DTYPE, ModelData
@@ -56,6 +56,7 @@ __all__ = [
     "PARAMETERS_DRAWN",
     "PARAMETERS_GIVEN_LABELS",
     "concept_totals",
+    "concept_word_counts",
     "posterior_means",
     "with_posterior_means",
 ]
@@ -121,6 +122,19 @@ def concept_totals(
         per_cell = modality.counts.sum(-1)  # [M]
         totals[:, 1 + j] = torch.zeros(num_l, dtype=DTYPE).index_add_(0, observed, per_cell)
     return totals
+
+
+def concept_word_counts(
+    labels: np.ndarray | torch.Tensor, data: ModelData, config: SpCoConfig
+) -> np.ndarray:
+    """[L, V] each word's count in each concept's region under the ``[N]`` labels (the model's
+    counts, n_lv of the module docstring, counted whether or not the config reads words): the
+    rows add up to :func:`concept_totals`' words column. A word whose count is 0 was never heard
+    in the concept (:func:`~spcopyro.results.concept_words.shown_words`)."""
+    tensor = _as_samples(labels)[0]  # [N]
+    counts = data.modality(WORDS).counts  # [M, V]
+    table = torch.zeros(config.num_concepts, counts.shape[-1], dtype=DTYPE)  # [L, V]
+    return table.index_add_(0, tensor[data.obs_cells], counts.to(DTYPE)).numpy()
 
 
 def with_posterior_means(

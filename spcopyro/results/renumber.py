@@ -83,8 +83,8 @@ def renumbered(result: SpCoResult, perm: np.ndarray) -> SpCoResult:
     """``result`` with concept l numbered ``perm[l]`` (a permutation of 0..L-1) in every
     concept-indexed part: ``labels`` and ``labels_final`` ([N] values), ``pi`` ([L]), every
     emission table's rows ([L, K_m]), the columns of ``marginals`` ([N, L]) and the rows of
-    ``concept_totals`` ([L, 1 + M]). Per-cell and per-word parts (``agreement``,
-    ``word_totals``) and the trace do not depend on the numbers."""
+    ``concept_totals`` ([L, 1 + M]) and ``word_counts`` ([L, V]). Per-cell and per-word parts
+    (``agreement``, ``word_totals``) and the trace do not depend on the numbers."""
     perm = np.asarray(perm, dtype=np.int64)  # [L]
     L = len(result.pi)
     if perm.shape != (L,) or not np.array_equal(np.sort(perm), np.arange(L)):
@@ -108,4 +108,5 @@ def renumbered(result: SpCoResult, perm: np.ndarray) -> SpCoResult:
         ),
         marginals=None if result.marginals is None else np.asarray(result.marginals)[:, inverse],
         concept_totals=rows(result.concept_totals),
+        word_counts=rows(result.word_counts),
     )

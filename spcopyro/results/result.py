@@ -64,6 +64,10 @@ _COUNTED = DataPreparation(word_weighting="count")
 as :func:`~spcopyro.data.counts.cell_counts` counts them unless told otherwise, recorded
 resolved, never ``"auto"``, which an update would resolve for its own data."""
 MAP_FILE = "map.yaml"
+_OPTIONAL_ARRAYS = (
+    "marginals", "labels_final", "concept_totals", "word_totals", "agreement", "word_counts"
+)  # fmt: skip
+"""The parts of a result that may be None, saved in ``result.npz`` under their own names."""
 
 
 def _count(n: int) -> int:
@@ -119,6 +123,11 @@ class SpCoResult:
     """[V] each vocabulary word's total count over the map's observed cells (the model's
     counts): 0 for a word heard only off the map's free space, whose where-answer is the prior's
     alone (:meth:`where` warns); None when unknown (an old result)."""
+    word_counts: np.ndarray | None = None
+    """[L, V] each word's count in each concept's region under ``labels`` (the model's counts), 0
+    for a word never heard there: the word lists keep a heard word whose probability ties the
+    lowest (:func:`~spcopyro.results.concept_words.shown_words`); None when unknown (an old
+    result, whose lists read the unheard words from ``w`` alone)."""
 
     @classmethod
     def from_output(
@@ -135,6 +144,7 @@ class SpCoResult:
         provenance: dict[str, object] | None = None,
         concept_totals: np.ndarray | None = None,
         word_totals: np.ndarray | None = None,
+        word_counts: np.ndarray | None = None,
     ) -> SpCoResult:
         """The result of ``output`` on ``grid``. ``modalities``: the names of the model data's
         modalities in order; ``items``: the item names of each (class numbers are used for a
@@ -166,6 +176,7 @@ class SpCoResult:
             provenance=dict(provenance or {}),
             concept_totals=concept_totals,
             word_totals=word_totals,
+            word_counts=word_counts,
         )
 
     # -- the parts --------------------------------------------------------------------------------
@@ -480,16 +491,9 @@ class SpCoResult:
         for table in self.emissions:
             arrays[f"emission_{table.name}"] = table.probabilities
             arrays[f"items_{table.name}"] = np.array(table.items, dtype=str)
-        if self.marginals is not None:
-            arrays["marginals"] = self.marginals
-        if self.labels_final is not None:
-            arrays["labels_final"] = self.labels_final
-        if self.concept_totals is not None:
-            arrays["concept_totals"] = self.concept_totals
-        if self.word_totals is not None:
-            arrays["word_totals"] = self.word_totals
-        if self.agreement is not None:
-            arrays["agreement"] = self.agreement
+        for key in _OPTIONAL_ARRAYS:  # a part the result does not know is not written
+            if getattr(self, key) is not None:
+                arrays[key] = getattr(self, key)
         return arrays
 
     @classmethod
@@ -583,13 +587,9 @@ class SpCoResult:
             ),
             best_iteration=int(arrays["best_iteration"]),
             method=str(arrays["method"]),
-            marginals=arrays.get("marginals"),
-            labels_final=arrays.get("labels_final"),
-            agreement=arrays.get("agreement"),
             preparation=DataPreparation(**settings["data"]),
             inference=dict(settings.get("inference", {})),
             name=str(arrays["name"]),
             provenance={k: v for k, v in settings.items() if k not in _SETTINGS},
-            concept_totals=arrays.get("concept_totals"),
-            word_totals=arrays.get("word_totals"),
+            **{key: arrays.get(key) for key in _OPTIONAL_ARRAYS},  # None: not saved (an old fit)
         )

@@ -103,9 +103,9 @@ def renormalise_vocabulary(saved: Sequence[str]) -> SavedVocabulary:
 
 def renormalised_result(result: SpCoResult) -> tuple[SpCoResult, SavedVocabulary]:
     """``result`` with its vocabulary read as :func:`renormalise_vocabulary` reads it: the word
-    distributions and ``word_totals`` over the re-normalised words (saved words that became one
-    word added), and what was read so. ``result`` itself when no word was renamed, or when it
-    has no words."""
+    distributions, ``word_totals`` and ``word_counts`` over the re-normalised words (saved words
+    that became one word added), and what was read so. ``result`` itself when no word was
+    renamed, or when it has no words."""
     if not any(table.name == WORDS for table in result.emissions):
         return result, renormalise_vocabulary(())
     saved = renormalise_vocabulary(result.vocabulary)
@@ -117,7 +117,10 @@ def renormalised_result(result: SpCoResult) -> tuple[SpCoResult, SavedVocabulary
         if table.name == WORDS else table
         for table in result.emissions
     )  # fmt: skip
-    totals = result.word_totals
+    totals, counts = result.word_totals, result.word_counts
     if totals is not None:
         totals = saved.fold(np.asarray(totals, dtype=np.float64)[None, :])[0]  # [V*]
-    return dataclasses.replace(result, emissions=tables, word_totals=totals), saved
+    if counts is not None:
+        counts = saved.fold(counts)  # [L, V*]
+    return dataclasses.replace(result, emissions=tables, word_totals=totals,
+                               word_counts=counts), saved  # fmt: skip
