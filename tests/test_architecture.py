@@ -192,6 +192,22 @@ def test_no_module_imports_a_private_name_of(protected):
     assert not offenders, "\n".join(offenders)
 
 
+def test_no_package_imports_a_private_name_of_another():
+    """A private name is its own package's (folder's, or loose module's): study.sources imported
+    map_yaml's _read_map_yaml and map_server's _read_occupancy_yaml, experiments.open_plan
+    floor_plan's _floor_plan and robot.map_simulation its _FloorPlan, all public now."""
+    offenders = [
+        f"{module}:{node.lineno} imports {node.module}.{alias.name}"
+        for module, path in MODULES.items()
+        for node in ast.walk(ast.parse(path.read_text(encoding="utf-8")))
+        if isinstance(node, ast.ImportFrom) and (node.module or "").startswith("spcopyro.")
+        and node.module.split(".")[1] != f"{module}.".split(".")[1]
+        for alias in node.names
+        if alias.name.startswith("_") and not alias.name.startswith("__")
+    ]  # fmt: skip
+    assert not offenders, "\n".join(offenders)
+
+
 def test_no_module_stands_in_for_a_class_with_any():
     """cli.fit_finished and cli.fit_write annotated ``job`` with ``Any as FitJob`` (the class
     lived in cli.fit, which imports both): a checker saw no FitJob. It lives in cli.fit_job now,

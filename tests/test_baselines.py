@@ -17,7 +17,7 @@ from spcopyro.metrics import (
     matching_rate,
 )
 from spcopyro.synthetic import HouseSpec, make_house
-from spcopyro.synthetic.floor_plan import _floor_plan
+from spcopyro.synthetic.floor_plan import floor_plan
 
 
 def corridor(length: int = 5) -> OccupancyGrid:
@@ -41,7 +41,7 @@ def wall_rooms(house, seed: int) -> np.ndarray:
 
     Drawn again from the generator's floor plan (same seed, same first draws as make_house).
     """
-    plan = _floor_plan(HouseSpec(), np.random.default_rng(seed))
+    plan = floor_plan(HouseSpec(), np.random.default_rng(seed))
     np.testing.assert_array_equal(plan.occupancy, house.grid.occupancy)  # same plan
     halves = 2 * plan.open_pairs  # regions (0, 1), (2, 3), ... share a room
     room = np.where(plan.region < halves, plan.region // 2, plan.region - plan.open_pairs)

@@ -19,7 +19,7 @@ from spcopyro.experiments.open_plan import (
 from spcopyro.metrics import adjusted_rand_index
 from spcopyro.study.ablation import ablation_study, spec_options
 from spcopyro.synthetic import HouseSpec, HouseSpecError, make_house
-from spcopyro.synthetic.floor_plan import _floor_plan
+from spcopyro.synthetic.floor_plan import floor_plan
 
 OPEN_PLAN = HouseSpec.open_plan()
 
@@ -78,7 +78,7 @@ def test_three_categories_share_one_walled_space(house):
 def test_the_open_plan_parts_are_unwalled_rectangles_of_their_own():
     for seed in range(3):
         spec = HouseSpec.open_plan(categories_per_open_plan=4)
-        plan = _floor_plan(spec, np.random.default_rng(seed))
+        plan = floor_plan(spec, np.random.default_rng(seed))
         assert plan.open_pairs == 1 and plan.open_size == 4 and plan.num_regions == 7
         house = make_house(seed=seed, spec=spec)
         # The four parts (regions 0-3) take four distinct categories, and cutting at doors

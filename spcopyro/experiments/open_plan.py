@@ -24,7 +24,7 @@ from spcopyro.baselines.nearest import nearest_word_map
 from spcopyro.experiments.methods import PUBLIC_DOOR_WIDTH
 from spcopyro.metrics import adjusted_rand_index
 from spcopyro.synthetic import HouseSpec, make_house
-from spcopyro.synthetic.floor_plan import _floor_plan
+from spcopyro.synthetic.floor_plan import floor_plan
 
 __all__ = [
     "OpenPlanScores",
@@ -111,7 +111,7 @@ def open_plan_scores(seed: int, spec: HouseSpec | None = None) -> OpenPlanScores
     truth = house.truth
     assert truth is not None and house.category_names is not None
     # The floor plan is make_house's first draw: the same seed gives the same regions.
-    plan = _floor_plan(spec, np.random.default_rng(seed))
+    plan = floor_plan(spec, np.random.default_rng(seed))
     np.testing.assert_array_equal(plan.occupancy, house.grid.occupancy)
     open_truth = np.where(plan.region < plan.open_pairs * plan.open_size, truth, -1)  # [H, W]
     grid, observations = house.grid, house.observations

@@ -59,7 +59,7 @@ from spcopyro.data import House, save_house
 from spcopyro.maps import UNKNOWN, OccupancyGrid, load_map
 from spcopyro.maps.free_space import check_free_cells, negate_hint
 from spcopyro.synthetic import DEFAULT_CATEGORY_NAMES, HouseSpec, HouseSpecError
-from spcopyro.synthetic.floor_plan import _FloorPlan
+from spcopyro.synthetic.floor_plan import FloorPlan
 from spcopyro.synthetic.house import tour_observations
 
 logger = logging.getLogger("spcopyro")
@@ -242,7 +242,7 @@ def simulate_on_map(
     # The tour sees only the rooms: free cells outside them count as walls for it.
     occupancy = np.where(np.asarray(grid.free) & (rooms < 0), UNKNOWN, grid.occupancy)
     tour_grid = OccupancyGrid(occupancy.astype(np.int8), grid.resolution, grid.origin)
-    plan = _FloorPlan(tour_grid.occupancy, rooms, num_rooms, 0)
+    plan = FloorPlan(tour_grid.occupancy, rooms, num_rooms, 0)
 
     observations = tour_observations(spec, tour_grid, plan, room_category, num_categories, rng)
     house = House(

@@ -7,7 +7,8 @@ positions). The same seed and spec always give the same house; different seeds g
 houses. :func:`write_synthetic` stores it in the public dataset's on-disk layout (plus
 ``truth.npy`` and ``categories.json``) so every loader and command can read it.
 
-Modules (everything public is re-exported here, so ``from spcopyro.synthetic import X`` works):
+Modules (the names below are re-exported here, so ``from spcopyro.synthetic import X`` works for
+them; not everything public is, see the end):
 
 * :mod:`~spcopyro.synthetic.lexicon`: the words per category (:data:`CATEGORY_LEXICON`,
   :func:`lexicon_for`), sentence templates and :data:`FILLER_WORDS`.
@@ -21,6 +22,11 @@ Modules (everything public is re-exported here, so ``from spcopyro.synthetic imp
   partitioning with doorways, open-plan rooms, ground-truth categories per region.
 * :mod:`~spcopyro.synthetic.house`: steps 4-6: the robot's tour, image features and utterances;
   :func:`make_house` and :func:`write_synthetic`.
+
+Not re-exported, among others (import them from their module):
+:mod:`~spcopyro.synthetic.floor_plan`'s ``FloorPlan`` and ``floor_plan``,
+:mod:`~spcopyro.synthetic.house`'s ``tour_observations`` (what a house simulated on a real map
+and the open-plan scores take of a synthetic house).
 """
 
 from spcopyro.synthetic.house import make_house, write_synthetic

@@ -43,7 +43,11 @@ _Rect = tuple[int, int, int, int]
 
 
 @dataclass(frozen=True)
-class _FloorPlan:
+class FloorPlan:
+    """A house's walls and regions: :func:`floor_plan`'s draw, or the rooms of a real map
+    (:func:`~spcopyro.robot.map_simulation.simulate_on_map`), for
+    :func:`~spcopyro.synthetic.house.tour_observations`."""
+
     occupancy: np.ndarray  # [H, W] int8 FREE / OCCUPIED / UNKNOWN
     region: np.ndarray  # [H, W] int64 region id per free cell, -1 elsewhere
     num_regions: int
@@ -186,8 +190,10 @@ def _open_plan_parts(room: _Rect, count: int, rng: np.random.Generator) -> list[
     return parts
 
 
-def _floor_plan(spec: HouseSpec, rng: np.random.Generator) -> _FloorPlan:
-    """Occupancy and region map: BSP rooms with doorways, then open-plan splits (no wall)."""
+def floor_plan(spec: HouseSpec, rng: np.random.Generator) -> FloorPlan:
+    """Occupancy and region map: BSP rooms with doorways, then open-plan splits (no wall).
+    :func:`~spcopyro.synthetic.make_house`'s first draw from its ``rng``: the same seed gives
+    the same plan (:mod:`spcopyro.experiments.open_plan` scores the open plans so)."""
     rooms, lines, open_rooms = _partition(spec, rng)
     num_walls = len(lines) // 2
     # The open-plan rooms (the largest, stable order) are split without walls.
@@ -216,12 +222,12 @@ def _floor_plan(spec: HouseSpec, rng: np.random.Generator) -> _FloorPlan:
     if unlabelled.any():
         _, (near_row, near_col) = ndimage.distance_transform_edt(region < 0, return_indices=True)
         region[unlabelled] = region[near_row[unlabelled], near_col[unlabelled]]
-    return _FloorPlan(
+    return FloorPlan(
         occupancy, region, len(regions), spec.num_open_plan, spec.categories_per_open_plan
     )
 
 
-def _region_categories(spec: HouseSpec, plan: _FloorPlan, rng: np.random.Generator) -> np.ndarray:
+def _region_categories(spec: HouseSpec, plan: FloorPlan, rng: np.random.Generator) -> np.ndarray:
     """Category id per region ([R] int64): names balanced, an open-plan room's parts always
     different.
 

@@ -41,7 +41,7 @@ from scipy import ndimage
 from spcopyro.data.dataset import House, save_house
 from spcopyro.data.observations import Observations
 from spcopyro.maps.grid import OccupancyGrid
-from spcopyro.synthetic.floor_plan import _floor_plan, _FloorPlan, _region_categories
+from spcopyro.synthetic.floor_plan import FloorPlan, _region_categories, floor_plan
 from spcopyro.synthetic.lexicon import _OBJECT_TEMPLATES, _PLACE_TEMPLATES, lexicon_for
 from spcopyro.synthetic.spec import HouseSpec, _is_int
 
@@ -123,9 +123,7 @@ class _Tour:
     visit_start: np.ndarray  # [V] index of each visit's first image (V = trials * regions)
 
 
-def _tour(
-    spec: HouseSpec, grid: OccupancyGrid, plan: _FloorPlan, rng: np.random.Generator
-) -> _Tour:
+def _tour(spec: HouseSpec, grid: OccupancyGrid, plan: FloorPlan, rng: np.random.Generator) -> _Tour:
     """Image positions: each trial visits every region once, in a random order."""
     free = grid.free  # [H, W] bool
     roomy = ndimage.distance_transform_edt(free) > spec.clearance  # [H, W] bool
@@ -251,7 +249,7 @@ def _utterances(
 def tour_observations(
     spec: HouseSpec,
     grid: OccupancyGrid,
-    plan: _FloorPlan,
+    plan: FloorPlan,
     region_category: np.ndarray,
     num_categories: int,
     rng: np.random.Generator,
@@ -292,7 +290,7 @@ def make_house(seed: int = 0, spec: HouseSpec | None = None, name: str = "synthe
         raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
     rng = np.random.default_rng(seed)
 
-    plan = _floor_plan(spec, rng)
+    plan = floor_plan(spec, rng)
     region_category = _region_categories(spec, plan, rng)  # [R]
     num_categories = min(plan.num_regions, len(spec.category_names))
     truth = np.where(plan.region >= 0, region_category[plan.region], -1)  # [H, W] int64
