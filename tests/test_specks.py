@@ -16,15 +16,19 @@ from spcopyro.results.concept_words import is_speck
 from spcopyro.results.result import EmissionTable, SpCoResult, Trace
 
 
-def _rooms_and_specks(agreement: bool = True, marginals: bool = False) -> SpCoResult:
-    """Two rooms of 300 cells (words heard in both) and two one-cell specks (none heard), on a
-    1 x 602 map; the kept samples' agreement is 1.0 in the rooms, 0.3 and 0.5 at the specks."""
-    sizes = [300, 300, 1, 1]
+def _rooms_and_specks(
+    agreement: bool = True, marginals: bool = False, specks: int = 2
+) -> SpCoResult:
+    """Two rooms of 300 cells (words heard in both) and ``specks`` one-cell specks (none heard),
+    on a 1 x (600 + specks) map; the kept samples' agreement is 1.0 in the rooms, 0.3 and 0.5 at
+    the first two specks, 0.4 at any further one."""
+    sizes = [300, 300] + [1] * specks
     n, num = sum(sizes), len(sizes)
     labels = np.repeat(np.arange(num), sizes)  # [N]
     totals = np.zeros((num, 3))  # [L, 1 + M]: cells observed, images, words heard
     totals[:2] = [10.0, 10.0, 5.0]
     agree = np.ones(n)  # [N]
+    agree[labels >= 2] = 0.4
     agree[labels == 2], agree[labels == 3] = 0.3, 0.5
     probabilities = np.zeros((n, num), dtype=np.float32)  # [N, L]
     probabilities[np.arange(n), labels] = agree
@@ -93,6 +97,31 @@ def test_the_semantic_map_counts_and_describes_the_specks():
                               "the other concepts' cells 100%"), speck  # fmt: skip
     finally:
         plt.close(fig)
+
+
+@pytest.mark.parametrize("count", [2, 8, 9, 10])
+def test_the_listing_and_the_legend_give_the_specks_one_line(count, capsys):
+    """room1ldk5 (seed 0): fit listed "8 specks of 1 cell where no word was heard (concepts 2,
+    3, 4, 43, 68, 70, 81, 87; concepts.json lists them)", its semantic map's legend "8 specks
+    of 1 cell, no words heard: [2], [3], [4], [43], [68], [70], ... in concepts.json": the same
+    specks, named by two rules in other words. Both now give one line, naming 8 (9 when one is
+    over: shown_count), the rest counted."""
+    from spcopyro.cli.concept_listing import print_concepts
+    from spcopyro.figures.map_pieces import concept_handles, legend_concepts
+
+    result = _rooms_and_specks(specks=count)
+    print_concepts(result)
+    (line,) = [s for s in capsys.readouterr().out.splitlines() if s.startswith("  + ")]
+    labels = [h.get_label() for h in concept_handles(result, np.zeros((count + 2, 3)))]
+    (legend,) = [t for t in labels if "speck" in t]
+    text, support = legend.split("\n")
+    assert line == f"  + {text}: {support.strip()}", (line, legend)
+    ids = [str(c) for c in range(2, count + 2)]
+    named = ids if count <= 9 else ids[:8]
+    more = "" if count <= 9 else f", ... ({count - 8} more)"
+    assert text == (f"{count} specks of 1 cell where no word was heard (concepts "
+                    f"{', '.join(named)}{more}; concepts.json lists them)")  # fmt: skip
+    assert legend_concepts(result) == {0, 1} | {int(c) for c in named}
 
 
 def test_fit_counts_the_specks_among_the_concepts_in_use(tmp_path, capsys):

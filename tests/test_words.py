@@ -239,7 +239,7 @@ def test_semantic_map_figure_writes_words_on_their_regions_and_marks_utterances(
     legend = [t.get_text() for t in ax.get_legend().get_texts()]
     assert any("where a word was heard" in t for t in legend)
     # a speck: one line for them all, saying where they are listed
-    assert "1 speck of 1 cell, no words heard: [2] in concepts.json" in legend
+    assert "1 speck of 1 cell where no word was heard (concept 2; concepts.json lists it)" in legend
     assert not any(t.startswith("[2]") for t in legend)
     assert any("distinctive: kitchen x1.7" in t for t in legend)
     totals = np.array([[3.0, 3.0, 5.0], [2.0, 2.0, 0.0], [0.0, 0.0, 0.0]])  # room 1 heard none

@@ -15,7 +15,7 @@ from spcopyro.results.concept_words import (
     heard_words,
     is_speck,
     shown_words,
-    speck_summary,
+    speck_line,
 )
 from spcopyro.results.specks import support_text
 
@@ -71,14 +71,10 @@ def print_concepts(
         summaries.append((max(rest), f"  ... {len(rest)} smaller concepts of "
                           f"{cells_range(rest)} in concepts.json"))  # fmt: skip
     if specks:
-        sizes = [int(c["cells"]) for c in specks]
-        which = "concept" if len(specks) == 1 else "concepts"
-        support = support_text(result, [int(c["concept"]) for c in specks])
+        sizes, ids = [int(c["cells"]) for c in specks], [int(c["concept"]) for c in specks]
+        support = support_text(result, ids)
         support = "" if support is None else f": {support}"
-        summaries.append((max(sizes), f"  + {speck_summary(sizes)} where no word was heard "
-                          f"({which} {', '.join(str(c['concept']) for c in specks[:8])}"
-                          f"{', ...' if len(specks) > 8 else ''}; concepts.json lists "
-                          f"{'it' if len(specks) == 1 else 'them'}){support}"))  # fmt: skip
+        summaries.append((max(sizes), f"  + {speck_line(ids, sizes)}{support}"))
     for _, line in sorted(summaries, key=lambda s: -s[0]):  # stable: equal sizes keep order
         print(line)
     if len(concepts) == 1:  # p(word) is then the concept's own: every lift is 1

@@ -37,8 +37,9 @@ from spcopyro.results.concept_words import (
     cells_range,
     format_words_heard,
     is_speck,
+    named_specks,
     shown_top_words,
-    speck_summary,
+    speck_line,
 )
 from spcopyro.results.result import SpCoResult
 from spcopyro.results.specks import support_text
@@ -87,7 +88,6 @@ STRIP_PAD = 0.03
 a cut shows whole (:func:`~spcopyro.figures.map_axes.strip_axes`)."""
 MAX_LEGEND_CONCEPTS = 12
 """The legend lists this many of the largest concepts (the rest are counted in one line)."""
-SPECKS_NAMED = 6  # the specks the legend's speck line names, "[3], [7], ..."
 MARKER_AREA = 22.0
 """Area (points^2, as ``scatter``'s ``s``) of the circle marking one utterance on the semantic
 map (:func:`utterance_markers`)."""
@@ -229,15 +229,11 @@ def concept_handles(
         summaries.append(
             (max(rest), f"... {len(rest)} smaller concepts of {cells_range(rest)} in concepts.json")
         )  # as fit's listing says: their words are there
-    if specks:
-        names = ", ".join(f"[{c}]" for c in specks[:SPECKS_NAMED])
-        names += ", ..." if len(specks) > SPECKS_NAMED else ""
+    if specks:  # fit's listing's line, its share of the posterior under it
         speck_sizes = [int(sizes[c]) for c in specks]
         support = support_text(result, specks)
         support = "" if support is None else f"\n      {support}"
-        # where they are listed, as fit's listing says ("concepts.json lists them")
-        summaries.append((max(speck_sizes), f"{speck_summary(speck_sizes)}, no words heard: "
-                          f"{names} in concepts.json{support}"))  # fmt: skip
+        summaries.append((max(speck_sizes), f"{speck_line(specks, speck_sizes)}{support}"))
     for _, label in sorted(summaries, key=lambda s: -s[0]):  # stable: equal sizes keep order
         handles.append(Patch(color="white", label=label))
     return handles
@@ -259,7 +255,7 @@ def legend_concepts(result: SpCoResult, limit: int = MAX_LEGEND_CONCEPTS) -> set
     and the specks its speck line names; a smaller concept is only counted there (its words
     are in concepts.json)."""
     used, specks = _legend_split(result)
-    return {int(c) for c in used[:limit]} | set(specks[:SPECKS_NAMED])
+    return {int(c) for c in used[:limit]} | set(named_specks(specks))
 
 
 def utterance_marks(utterances: list[list[str]]) -> list[str]:

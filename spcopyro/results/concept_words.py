@@ -29,12 +29,16 @@ from collections.abc import Collection, Sequence
 
 import numpy as np
 
+from spcopyro._util.messages import listed, shown_count
+
 __all__ = [
     "MIN_LIFT",
     "NO_WORDS",
     "ESTIMATED_WORDS",
     "SPECK_SHARE",
+    "SPECKS_NAMED",
     "is_speck",
+    "speck_line",
     "speck_summary",
     "cells_range",
     "distinctive_items",
@@ -43,6 +47,7 @@ __all__ = [
     "heard_words",
     "item_marginal",
     "lift",
+    "named_specks",
     "near_uniform",
     "prior_share",
     "ranked",
@@ -225,6 +230,28 @@ def is_speck(cells: int, heard: float | None, num_free: int) -> bool:
     """Whether a concept of ``cells`` cells where ``heard`` words were heard is a speck
     (:data:`SPECK_SHARE`); a result that does not know its counts (``heard`` None) has none."""
     return heard == 0 and cells < SPECK_SHARE * num_free
+
+
+SPECKS_NAMED = 8
+"""The specks :func:`speck_line` names, the rest counted (one over is named,
+:func:`~spcopyro._util.messages.shown_count`): fit's listing named 8 and the map's legend 6 of
+the same 8 (room1ldk5, seed 0), each in its own words."""
+
+
+def speck_line(specks: Sequence[int], sizes: Sequence[int]) -> str:
+    """The one line ``fit``'s listing and the semantic map's legend give the specks ``specks``
+    (concept ids, largest first) of ``sizes`` cells: ``"8 specks of 1 cell where no word was
+    heard (concepts 2, 3, 4, 43, 68, 70, 81, 87; concepts.json lists them)"``, the first
+    :data:`SPECKS_NAMED` named, then ``", ... (N more)"``."""
+    which, them = ("concept", "it") if len(specks) == 1 else ("concepts", "them")
+    names = listed([str(c) for c in specks], SPECKS_NAMED)
+    where = f"({which} {names}; concepts.json lists {them})"
+    return f"{speck_summary(sizes)} where no word was heard {where}"
+
+
+def named_specks(specks: Sequence[int]) -> list[int]:
+    """The specks of ``specks`` that :func:`speck_line` names by their ids."""
+    return list(specks[: shown_count(len(specks), SPECKS_NAMED)])
 
 
 def speck_summary(sizes: Sequence[int]) -> str:
