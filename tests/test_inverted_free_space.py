@@ -180,9 +180,11 @@ def test_a_negated_map_is_refused_on_a_coarsened_model_grid(tmp_path, caplog):
     assert report.num_unplaced == 20 and report.unplaced_on_occupied == 20
     # the refusal blames negate: alone, without the warnings listing the 20 left out
     with caplog.at_level(logging.WARNING, logger="spcopyro"), pytest.raises(ValueError) as error:
-        check_placement(report, obs, grid, f" on map {yaml_path}")
+        check_placement(report, obs, grid)  # the map named by the coarse grid's source
     message = str(error.value)
-    assert message.startswith("20 of 28 observations are left out, 20 of them on occupied cells")
+    assert message.startswith(
+        f"20 of 28 observations are left out, 20 of them on occupied cells on map {yaml_path}"
+    ), message
     assert [r.getMessage() for r in caplog.records] == []
     assert (
         f"{yaml_path}:4: negate 1 on a map whose free space is drawn white (map_saver's maps "
@@ -259,7 +261,7 @@ def test_check_on_free_and_check_placement_refuse_with_one_rule_and_one_message(
     very message; the inverted map is refused by check_placement alone (check_on_free kept an
     older rule and message of its own for it, without the negate line's evidence)."""
     occupancy = np.array([[FREE, UNKNOWN, UNKNOWN, OCCUPIED, UNKNOWN]], dtype=np.int8)
-    grid = OccupancyGrid(occupancy, 1.0, (0.0, 0.0, 0.0))
+    grid = OccupancyGrid(occupancy, 1.0, (0.0, 0.0, 0.0), source="M")  # named " on map M"
     for cols, said in (
         ([3, 3, 3, 4], "no observation lands on free space: 8 of 8"),  # none on free space
         ([0, 3, 3, 3], "6 of 8 observations are left out, 6 of them on occupied cells"),
@@ -267,7 +269,7 @@ def test_check_on_free_and_check_placement_refuse_with_one_rule_and_one_message(
         obs = _observations(np.array([[c + 0.5, 0.5] for c in cols]))  # [4, 2]
         report = cell_counts(grid, obs, snap_distance=0.0, warn=False).placement
         with pytest.raises(ValueError) as by_placement:
-            check_placement(report, obs, grid, " on map M")
+            check_placement(report, obs, grid)
         assert str(by_placement.value).startswith(said)
         if report.num_on_free:  # inverted: check_placement's rule, not check_on_free's
             report.check_on_free(" on map M")

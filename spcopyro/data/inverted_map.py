@@ -66,7 +66,6 @@ def check_placement(
     report: PlacementReport,
     obs: Observations,
     grid: OccupancyGrid,
-    where: str | None = None,
     source: str | os.PathLike[str] | None = None,
 ) -> None:
     """Raise ValueError when no observation lands on free space
@@ -77,11 +76,10 @@ def check_placement(
     (:func:`~spcopyro.data.counts.say_placement_warnings` of ``report``, ``grid``, ``obs`` and
     the house folder ``source``: count with ``warn=False``) are said once: before the refusal
     on a map that may be right, which points to the lines the warnings name, or when the
-    placement passes; not before the others, which blame the map. ``where`` names the map in the
-    messages: ``" on map PATH"`` of ``grid``'s source (:func:`~spcopyro.data.placement.on_map_text`)
-    unless given."""
-    if where is None:
-        where = on_map_text(grid)
+    placement passes; not before the others, which blame the map. The messages name the map as
+    the warnings do: ``" on map PATH"`` of ``grid``'s source
+    (:func:`~spcopyro.data.placement.on_map_text`; nothing for a grid built in memory)."""
+    where = on_map_text(grid)
     if report.num_observations and not report.num_on_free:  # the yaml's negate line named
         from spcopyro.maps.free_space import negate_line
 
