@@ -751,3 +751,18 @@ def test_the_house_legend_names_the_other_words():
     assert wanted in [c.get_label() for c in fig.axes[0].collections]
     assert other_words_label(Counter(["x", "y", "y", ""]), ["x"]) == "other words: y"
     assert other_words_label(Counter(["x", ""]), ["x"]) == "other words"  # an empty one only
+
+
+def test_the_house_legend_names_one_other_word_over_the_limit():
+    """messages.shown_count's rule: "and 1 more" takes as much of the line as the word it
+    hides, so seven other words (one over OTHER_WORDS_NAMED) are all named; eight still end
+    "and 2 more"."""
+    from collections import Counter
+
+    from spcopyro.figures.house import OTHER_WORDS_NAMED, other_words_label
+
+    words = [f"w{k}" for k in range(OTHER_WORDS_NAMED + 2)]
+    one_over = Counter(words[: OTHER_WORDS_NAMED + 1])
+    assert other_words_label(one_over, []) == "other words: " + ", ".join(words[:-1])
+    two_over = other_words_label(Counter(words), [])
+    assert two_over == "other words: " + ", ".join(words[:OTHER_WORDS_NAMED]) + " and 2 more"

@@ -12,7 +12,7 @@ import numpy as np
 from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 
-from spcopyro._util.messages import plural
+from spcopyro._util.messages import plural, shown_count
 from spcopyro.data import House
 from spcopyro.figures.map_axes import map_axes
 from spcopyro.figures.map_pieces import (
@@ -30,7 +30,7 @@ from spcopyro.figures.png import save_figure
 from spcopyro.maps import distinct_colours, render_labels
 
 MAX_WORD_COLOURS = 12  # words beyond the most frequent ones are drawn as "other"
-OTHER_WORDS_NAMED = 6  # the legend's "other words: ..." names at most this many, then "and N more"
+OTHER_WORDS_NAMED = 6  # "other words: ..." names this many, then "and N more" (one over: named)
 
 
 def plot_house(house: House, path: str | os.PathLike[str], title: str | None = None) -> Path:
@@ -40,7 +40,8 @@ def plot_house(house: House, path: str | os.PathLike[str], title: str | None = N
 
 def other_words_label(counts: Mapping[str, int], frequent: list[str]) -> str:
     """The legend's entry for the grey circles: "other words: " and the words they stand for,
-    the most heard first (ties alphabetically), at most ``OTHER_WORDS_NAMED`` and "and N more".
+    the most heard first (ties alphabetically), at most ``OTHER_WORDS_NAMED`` and "and N more"
+    (all of them where one is over: :func:`~spcopyro._util.messages.shown_count`).
     ``counts``: how many utterances each word marks (a ``Counter`` of
     :func:`~spcopyro.figures.map_pieces.utterance_marks`, counted once by the figure; an
     empty utterance's "" is not named), ``frequent``: the words that have a colour. Before,
@@ -49,8 +50,9 @@ def other_words_label(counts: Mapping[str, int], frequent: list[str]) -> str:
     named = set(frequent)
     others = [(w, n) for w, n in counts.items() if w and w not in named and n > 0]
     rest = [w for w, _ in sorted(others, key=lambda item: (-item[1], item[0]))]
-    more = len(rest) - OTHER_WORDS_NAMED
-    return "other words" + (f": {', '.join(rest[:OTHER_WORDS_NAMED])}" if rest else "") + (
+    shown = shown_count(len(rest), OTHER_WORDS_NAMED)
+    more = len(rest) - shown
+    return "other words" + (f": {', '.join(rest[:shown])}" if rest else "") + (
         f" and {more} more" if more > 0 else "")  # fmt: skip
 
 
