@@ -330,7 +330,8 @@ def test_several_chains_are_refined_from_the_best_coarse_chain(home, tmp_path, c
             "--refine", "always", "--chains", "2"]  # fmt: skip
     assert main(argv) == 0
     printed = capsys.readouterr().out
-    assert "refining " in printed and "the 2 x 20 sweeps" in printed
+    (line,) = [x for x in printed.splitlines() if x.startswith("refining ")]
+    assert ": continuing from the best of 2 chains on the map's own 0.1 m cells (" in line, line
     assert "fitted 2 chains x 20 sweeps on 0.3 m cells (" in printed
     assert "), then 2 chains x 20 on the map's 0.1 m cells (" in printed
     chains = json.loads((out / "chains.json").read_text())
@@ -398,7 +399,8 @@ def test_sweeps_auto_refines_for_as_many_sweeps_as_the_chains_needed(home, tmp_p
     out = tmp_path / "out"
     assert main([*argv, "--out", str(out), "--refine", "always"]) == 0
     printed = capsys.readouterr().out
-    assert "refining         refine='always'" in printed and "the 2 x 20 sweeps" in printed
+    assert "refining         refine='always'" in printed
+    assert ": continuing from the best of 2 chains on the map's own 0.1 m cells (" in printed
     assert "--sweeps auto: 2 chains " in printed and " after 20 sweeps each" in printed
     assert "highest log joint, the refinement started from it" in printed
     assert "fitted 2 chains x 20 sweeps on 0.3 m cells (" in printed
@@ -501,7 +503,10 @@ def test_the_refining_line_says_why_alpha_changed(home, tmp_path, capsys):
     """``refining ... alpha 1.22e+09`` after the model's ``alpha 1e7`` said nothing of the
     change: the line gives the sum (refined_settings: the first stage's alpha times the square
     of the free cells' ratio, map over model grid) with the counts it used, short, and the line
-    under it, indented and under 100 characters, says why."""
+    under it, indented and under 100 characters, says why. The line itself is the decision's
+    reason, the cells it continues on and alpha: it also said the first stage's sweeps, cells
+    and log joint (the lines above and config.json say them) and the refinement's preparation
+    (fit --help), 337 characters on room1ldk5 with --refine always."""
     import re
 
     argv = ["fit", str(home), "--out", str(tmp_path / "out"), "--sweeps", "2", "--no-figures",
@@ -510,10 +515,13 @@ def test_the_refining_line_says_why_alpha_changed(home, tmp_path, capsys):
     lines = capsys.readouterr().out.splitlines()
     at = next(k for k, x in enumerate(lines) if x.startswith("refining"))
     match = re.search(
-        r", alpha (\S+) \((\S+) x \(([\d,]+) / ([\d,]+)\)\^2: scaled with the free cells\)$",
+        r": continuing on the map's own 0\.1 m cells \(\d+ observed\), "
+        r"alpha (\S+) \((\S+) x \(([\d,]+) / ([\d,]+)\)\^2\)$",
         lines[at],
     )
     assert match, lines[at]
+    reason = json.loads((tmp_path / "out" / "config.json").read_text())["inference"]["refine"]
+    assert lines[at][: match.start()] == f"refining         {reason['reason']}", lines[at]
     alpha, first_alpha, cells, first_cells = match.groups()
     cells, first_cells = int(cells.replace(",", "")), int(first_cells.replace(",", ""))
     # the counts are the map line's: "328 free (the model's cells, of the map's ..., 3620 free)"

@@ -200,7 +200,9 @@ def _decide(
     settings: SpCoSettings,
 ) -> tuple[RefineDecision, dict[str, dict[str, object]]]:
     """The decision for ``first`` (the kept one of ``chains`` chains on ``model``'s grid),
-    printed: ``refining ...`` with what the refit changes, or ``not refined ...`` and why; and
+    printed: ``refining ...``, why and on which cells, with the alpha that changes (the first
+    stage's sweeps, cells and log joint are on the lines above and in config.json, the
+    refinement's preparation in ``fit --help``), or ``not refined ...`` and why; and
     the options of the command line the refinement replaces (:func:`replaced_options`), named
     in a note (stderr) where there are any."""
     from spcopyro.fit.refine import refine_decision, refined_settings
@@ -212,11 +214,9 @@ def _decide(
         refined = refined_settings(settings, first_cells, cells)
         observed = _observed_cells(on_map, refined.data)
         alpha, why = _alpha_scaled(settings, refined, cells, first_cells)
-        print(f"refining         {decision.reason}: the {chains} x "
-              f"{len(first.trace.objective)} sweeps on {first.grid.resolution:g} m cells (best log "
-              f"joint {first.best_objective:.1f}) continue on the map's own "
-              f"{on_map.grid.resolution:g} m cells ({observed} observed), images as 100 draws, "
-              f"words at their cell, {alpha}")  # fmt: skip
+        start = f" from the best of {chains} chains" if chains > 1 else ""
+        print(f"refining         {decision.reason}: continuing{start} on the map's own "
+              f"{on_map.grid.resolution:g} m cells ({observed} observed), {alpha}")  # fmt: skip
         if why is not None:  # the rule's words, indented under the line (fit's listings' way)
             print(why)
         replaced = replaced_options(settings, refined.data)
@@ -243,13 +243,12 @@ def _alpha_scaled(settings: SpCoSettings, refined: SpCoSettings, cells: int,
     cells' ratio, ``cells`` on the map over ``first_cells`` on the model grid
     (:func:`~spcopyro.fit.refine.refined_settings`, which keeps alpha where the model grid has no
     free cells), so that the label counts' prior weighs what it did on the model grid. On the
-    embedded house ``alpha 1.22e+09 (1e+07 x (3,620 / 328)^2: scaled with the free cells)``,
-    then ``  alpha grows as the free cells squared, so ...`` (under 100 characters)."""
+    embedded house ``alpha 1.22e+09 (1e+07 x (3,620 / 328)^2)``, then ``  alpha grows as the
+    free cells squared, so ...`` (under 100 characters)."""
     alpha = f"alpha {refined.model.alpha:.3g}"
     if refined.model.alpha == settings.model.alpha:
         return alpha, None
-    return (f"{alpha} ({settings.model.alpha:.3g} x ({cells:,} / {first_cells:,})^2: scaled with "
-            "the free cells)",
+    return (f"{alpha} ({settings.model.alpha:.3g} x ({cells:,} / {first_cells:,})^2)",
             "  alpha grows as the free cells squared, so the label counts' prior weighs as on "
             "the model grid")  # fmt: skip
 
