@@ -7,7 +7,6 @@ import argparse
 import math
 import os
 from collections.abc import Callable
-from pathlib import Path
 
 __all__ = [
     "MAX_SEED",
@@ -103,9 +102,11 @@ def figure_path(value: str) -> str:
             f"{value!r} is a folder: give the figure's file name in it, e.g. "
             f"{os.path.join(value, 'figure.png')!r}"
         )
-    from spcopyro._util.outputs import nearest_existing  # not at start-up: --help needs none
+    # not at start-up: --help needs neither
+    from spcopyro._util.folder_commit import absolute_path
+    from spcopyro._util.outputs import nearest_existing
 
-    parent = nearest_existing(Path(os.path.abspath(value)).parent)
+    parent = nearest_existing(absolute_path(value).parent)
     if parent.exists() and not parent.is_dir():
         raise argparse.ArgumentTypeError(
             f"{value!r}: {str(parent)!r} is a file, not a folder the figure could be written in"
