@@ -176,11 +176,11 @@ def prior_share(row: np.ndarray) -> float | None:
     """The probability of a word never heard in a concept whose distribution is ``row`` ``[V]``
     (rounded to :data:`RANK_DECIMALS`), or None when no word need be, read from the row: its
     minimum, when two or more words share it and some word lies above it. Under a posterior
-    mean ``(beta + n_lv) / (V beta + n_l)`` every unheard word has that minimum, ``beta / (V beta
-    + n_l)``, and a draw's row (no two words equal) has none. Heard words tied at the minimum
-    count share it too (every word heard, the rarest twice or more): :func:`shown_words` keeps
-    them where the result kept its counts (:func:`heard_words`); a result saved without them
-    reads them as unheard, as it always did."""
+    mean ``(beta + n_lv) / (V beta + n_l)`` every unheard word has that minimum,
+    ``beta / (V beta + n_l)``, and a draw's row (no two words equal) has none. Heard words tied
+    at the minimum count share it too (every word heard, the rarest twice or more):
+    :func:`shown_words` keeps them where the result kept its counts (:func:`heard_words`); a
+    result saved without them reads them as unheard, as it always did."""
     rounded = np.round(np.asarray(row, dtype=np.float64), RANK_DECIMALS)  # [V]
     if rounded.size < 2:
         return None
@@ -240,9 +240,11 @@ the same 8 (room1ldk5, seed 0), each in its own words."""
 
 def speck_line(specks: Sequence[int], sizes: Sequence[int]) -> str:
     """The one line ``fit``'s listing and the semantic map's legend give the specks ``specks``
-    (concept ids, largest first) of ``sizes`` cells: ``"8 specks of 1 cell where no word was
-    heard (concepts 2, 3, 4, 43, 68, 70, 81, 87; concepts.json lists them)"``, the first
-    :data:`SPECKS_NAMED` named, then ``", ... (N more)"``."""
+    (concept ids, largest first) of ``sizes`` cells, the first :data:`SPECKS_NAMED` named and
+    the rest counted (:func:`~spcopyro._util.messages.listed`).
+
+    E.g. ``"8 specks of 1 cell where no word was heard (concepts 2, 3, 4, 43, 68, 70, 81, 87;
+    concepts.json lists them)"``."""
     which, them = ("concept", "it") if len(specks) == 1 else ("concepts", "them")
     names = listed([str(c) for c in specks], SPECKS_NAMED)
     where = f"({which} {names}; concepts.json lists {them})"
