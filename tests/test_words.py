@@ -403,6 +403,10 @@ def test_a_word_never_heard_in_a_concept_is_not_listed_among_its_words(tmp_path,
     # the one filter all four print through: a concept of the result, its own row beside it
     assert [w for w, _ in shown_top_words(result, 0, 3)] == ["bathroom", "bathtub"]
     assert shown_top_words(result, 1, 3) == shown_words(result.top_words(1, 3), result.w[1])
+    # the listing's own top words (concepts()'s), in its order: filtered the same, not re-read
+    bathroom, bathtub, restroom = result.top_words(0, 3)
+    given = [bathtub, restroom, bathroom]
+    assert shown_top_words(result, 0, 1, top=given) == [bathtub, bathroom]
     # a draw's row (no two words equal) keeps a word at 0.01: nothing says it went unheard
     drawn = np.array([0.64, 0.33, 0.011, 0.01, 0.009])
     top = list(zip("abc", drawn[:3], strict=True))

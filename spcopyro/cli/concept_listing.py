@@ -12,9 +12,8 @@ from spcopyro.results.concept_words import (
     cells_range,
     format_concept_words,
     format_words_heard,
-    heard_words,
     is_speck,
-    shown_words,
+    shown_top_words,
     speck_line,
 )
 from spcopyro.results.specks import support_text
@@ -49,12 +48,9 @@ def print_concepts(
     listed = [c for c in concepts if not _is_speck(c, result.grid.num_free)]
     for concept in listed[:limit]:
         heard = concept["words_heard"]
+        top = [(w, p) for w, p in concept["top_words"]]
         words = format_concept_words(
-            shown_words(
-                [(w, p) for w, p in concept["top_words"]],
-                result.w[concept["concept"]],
-                heard_words(result, concept["concept"]),
-            ),
+            shown_top_words(result, concept["concept"], len(top), top=top),
             [(w, r, p) for w, r, p in concept["distinctive_words"]],
             heard,
         )

@@ -162,14 +162,16 @@ def heard_words(result, concept: int) -> frozenset[str] | None:
     return frozenset(word for word, n in zip(result.vocabulary, row, strict=True) if n > 0)
 
 
-def shown_top_words(result, concept: int, n: int) -> list[tuple[str, float]]:
+def shown_top_words(
+    result, concept: int, n: int, top: Sequence[tuple[str, float]] | None = None
+) -> list[tuple[str, float]]:
     """:func:`shown_words` of concept ``concept``'s ``n`` most probable words of ``result`` (an
     :class:`~spcopyro.results.result.SpCoResult`), given its row ``result.w[concept]`` ``[V]``
     and its :func:`heard_words`: the words fit's listing, the map's legend and labels and
-    ``where`` print."""
-    return shown_words(
-        result.top_words(concept, n), result.w[concept], heard_words(result, concept)
-    )
+    ``where`` print. ``top``: those words where the caller has them already (a concept's
+    ``top_words`` in ``result.concepts()``), used instead of ``result.top_words(concept, n)``."""
+    top = result.top_words(concept, n) if top is None else top
+    return shown_words(top, result.w[concept], heard_words(result, concept))
 
 
 def prior_share(row: np.ndarray) -> float | None:
