@@ -39,7 +39,6 @@ __all__ = [
     "SPECKS_NAMED",
     "is_speck",
     "speck_line",
-    "speck_summary",
     "cells_range",
     "distinctive_items",
     "format_concept_words",
@@ -250,18 +249,13 @@ def speck_line(specks: Sequence[int], sizes: Sequence[int]) -> str:
     which, them = ("concept", "it") if len(specks) == 1 else ("concepts", "them")
     names = listed([str(c) for c in specks], SPECKS_NAMED)
     where = f"({which} {names}; concepts.json lists {them})"
-    return f"{speck_summary(sizes)} where no word was heard {where}"
+    count = f"{len(sizes)} {'speck' if len(sizes) == 1 else 'specks'}"  # "4 specks"
+    return f"{count} of {cells_range(sizes)} where no word was heard {where}"
 
 
 def named_specks(specks: Sequence[int]) -> list[int]:
     """The specks of ``specks`` that :func:`speck_line` names by their ids."""
     return list(specks[: shown_count(len(specks), SPECKS_NAMED)])
-
-
-def speck_summary(sizes: Sequence[int]) -> str:
-    """``"4 specks of 1 cell"``, ``"2 specks of 1-3 cells"``: specks of these cell counts."""
-    specks = "speck" if len(sizes) == 1 else "specks"
-    return f"{len(sizes)} {specks} of {cells_range(sizes)}"
 
 
 def cells_range(sizes: Sequence[int]) -> str:
