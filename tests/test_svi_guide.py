@@ -13,13 +13,14 @@ import pyro
 import pyro.optim
 import pytest
 import torch
+from pyro import poutine
 
 from spcopyro.config import preset
 from spcopyro.fit.house import fit_house, prepare_model_data
 from spcopyro.fit.registry import get_method
 from spcopyro.guides.elbo import elbo
 from spcopyro.guides.factors import GlobalFactors
-from spcopyro.guides.loss import MeanFieldELBO
+from spcopyro.guides.loss import MeanFieldELBO, particle_estimate, traces
 from spcopyro.guides.mean_field import MeanFieldGuide, WrongLossError
 from spcopyro.guides.options import VariationalOptions
 from spcopyro.guides.run import initial_q, run_variational
@@ -95,6 +96,45 @@ def test_the_gradient_averages_to_the_analytic_gradient(small, store, bound):
         scale = target.abs().max()
         gap = (draws.mean(0) - target).abs()
         assert (gap <= 5 * error + 1e-6 * scale).all(), (name, float((gap - 5 * error).max()))
+
+
+def test_the_loss_takes_the_labels_at_their_mode_with_the_estimate_of_a_draw(small, store):
+    """Under MeanFieldELBO the guide's labels are q(C)'s mode, not a draw (a draw of N L
+    exponentials that the estimate never reads): with the same globals drawn, the value and the
+    gradient are the same bits as with the labels drawn, the old path. The guide run plainly
+    (Predictive) still draws its labels from q(C)."""
+    data, config = small
+    guide = soft_guide(data, config, seed=2)
+    guide(data, config)  # a call puts the params in the store
+    leaves = [store.get_param(name).unconstrained() for name in store.keys()]
+    mode = guide.marginals().argmax(-1)  # [N]
+
+    def drawn_labels_estimate() -> torch.Tensor:  # the old path: the guide's labels drawn
+        guide_trace = poutine.trace(guide).get_trace(data, config)
+        replayed = poutine.replay(spcomapping_model, trace=guide_trace)
+        model_trace = poutine.trace(replayed).get_trace(data, config)
+        assert (guide_trace.nodes[SITE_LABELS]["value"] != mode).any()  # a draw, soft q
+        return particle_estimate(model_trace, guide_trace, data, config)
+
+    for seed in range(3):
+        torch.manual_seed(seed)
+        before = drawn_labels_estimate()
+        torch.manual_seed(seed)
+        model_trace, guide_trace = traces(spcomapping_model, guide, data, config)
+        assert torch.equal(guide_trace.nodes[SITE_LABELS]["value"], mode)
+        assert torch.equal(model_trace.nodes[SITE_LABELS]["value"], mode)
+        after = particle_estimate(model_trace, guide_trace, data, config)
+        assert torch.equal(after, before)
+        for old, new in zip(
+            torch.autograd.grad(before, leaves), torch.autograd.grad(after, leaves), strict=True
+        ):
+            assert torch.equal(old, new)
+        torch.manual_seed(seed)  # the loss itself: minus the same estimate, the model checked
+        assert torch.equal(
+            -MeanFieldELBO().differentiable_loss(spcomapping_model, guide, data, config), before
+        )
+    draws = pyro.infer.Predictive(spcomapping_model, guide=guide, num_samples=2)(data, config)
+    assert (draws[SITE_LABELS] != mode).any(-1).all()  # drawn from q(C), not its mode
 
 
 def test_svi_with_the_plain_api_raises_the_elbo(small, store):
@@ -242,28 +282,35 @@ def test_bad_input_is_a_clear_error(small):
 @pytest.mark.slow
 def test_svi_finds_the_rooms_and_ends_near_cavi():
     """On an easy house (the one tests/test_inference_interface.py fits), from the same random
-    start as annealed CAVI, SVI with its default options (300 steps) finds the rooms and ends
-    within 3 % of CAVI's ELBO (measured: -6233 vs -6131, 1.7 %; ARI 0.93 vs 0.95; over start
-    seeds 0-3 the two land in different local optima, SVI from 4 % above to 9 % below). Started
-    at CAVI's optimum, 100 SVI steps stay within 1 % of it (measured 0.45 %: the noise floor of
-    a constant step size) and keep its labels."""
+    starts as annealed CAVI (seeds 0-3), SVI with its default options (300 steps) finds the
+    rooms and ends near CAVI's ELBO. From one start the two often land in different local
+    optima: over seeds 0-7 SVI ended from 6 % above to 10 % below CAVI, ARI 0.74 to 0.96, with
+    its labels drawn (before 2026-12-06) as with them at their mode (measured, 300 steps each),
+    so a single seed passed or failed by its draws (seed 0 gave -1.7 %, ARI 0.93 with the
+    labels drawn, -6.4 %, ARI 0.86 without); over seeds 0-3 the mean |gap| was 3.8 % and 4.9 %,
+    the mean ARI 0.85 both ways. Started at CAVI's optimum, 100 SVI steps stay within 1 % of it
+    (measured 0.45 %: the noise floor of a constant step size) and keep its labels."""
     house = make_house(seed=1, spec=HouseSpec(height=40, width=50, num_rooms=3, num_trials=3))
     settings = preset("original-code", gamma=3.0, num_concepts=8)
     _, data = prepare_model_data(house, settings)
     config = settings.model
-    q = initial_q(data, config, torch.Generator().manual_seed(0))
-    svi = fit_svi(data, config, 300, q=q.clone(), generator=torch.Generator().manual_seed(0),
-                  progress=False)  # fmt: skip
-    cavi = run_variational(data, config, 60, options=VariationalOptions(anneal_iterations=30),
-                           q=q.clone(), progress=False)  # fmt: skip
-    svi_elbo = float(elbo(svi.q, svi.factors, data, config))
-    cavi_elbo = float(elbo(cavi.q, cavi.factors, data, config))
-    assert abs(svi_elbo - cavi_elbo) < 0.03 * abs(cavi_elbo), (svi_elbo, cavi_elbo)
-    image = np.full(house.grid.shape, -1)
-    image[house.grid.free] = svi.labels.numpy()
-    assert adjusted_rand_index(image, house.truth) > 0.85
-    # the traced estimate tracks the exact ELBO at the end (noise of ~10 nats)
-    assert abs(svi.objective[-20:].mean() - svi_elbo) < 0.005 * abs(svi_elbo)
+    gaps, scores = [], []
+    for seed in range(4):
+        q = initial_q(data, config, torch.Generator().manual_seed(seed))
+        svi = fit_svi(data, config, 300, q=q.clone(),
+                      generator=torch.Generator().manual_seed(seed), progress=False)  # fmt: skip
+        cavi = run_variational(data, config, 60, options=VariationalOptions(anneal_iterations=30),
+                               q=q.clone(), progress=False)  # fmt: skip
+        svi_elbo = float(elbo(svi.q, svi.factors, data, config))
+        cavi_elbo = float(elbo(cavi.q, cavi.factors, data, config))
+        gaps.append(abs(svi_elbo - cavi_elbo) / abs(cavi_elbo))
+        image = np.full(house.grid.shape, -1)
+        image[house.grid.free] = svi.labels.numpy()
+        scores.append(adjusted_rand_index(image, house.truth))
+        # the traced estimate tracks the exact ELBO at the end (noise of ~10 nats)
+        assert abs(svi.objective[-20:].mean() - svi_elbo) < 0.005 * abs(svi_elbo)
+    assert np.mean(gaps) < 0.07 and max(gaps) < 0.1, gaps
+    assert np.mean(scores) > 0.8 and min(scores) > 0.7, scores
 
     warm = SVIOptions(label_smoothing=0.001, anneal_iterations=0)
     kept = fit_svi(data, config, 100, q=cavi.q.clone(), generator=torch.Generator(),
