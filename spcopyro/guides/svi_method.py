@@ -29,6 +29,7 @@ import torch
 
 from spcopyro._util.messages import setting
 from spcopyro.config import SpCoConfig
+from spcopyro.guides.adam import plain_adam
 from spcopyro.guides.cavi_method import output_from_variational
 from spcopyro.guides.loss import MeanFieldELBO
 from spcopyro.guides.mean_field import (
@@ -182,7 +183,9 @@ class SVIOptions:
         )  # fmt: skip
 
     def optimiser_for(self, guide: MeanFieldGuide) -> pyro.optim.PyroOptim:
-        """The Pyro optimiser: per-parameter step sizes (logits vs concentrations)."""
+        """The Pyro optimiser: per-parameter step sizes (logits vs concentrations). ``"adam"``
+        is :func:`~spcopyro.guides.adam.plain_adam`, ``pyro.optim.Adam``'s updates bit for bit
+        without torch.optim, whose first use imports ``torch._dynamo`` (1.1 s a process)."""
         logits = guide.logits_name
         global_rate = self.global_learning_rate or self.learning_rate
 
@@ -194,7 +197,7 @@ class SVIOptions:
 
         if self.optimiser == "clipped-adam":
             return pyro.optim.ClippedAdam(per_param)
-        return pyro.optim.Adam(per_param)
+        return plain_adam(per_param)  # pyro.optim.Adam's updates, without torch._dynamo
 
 
 class SVIState(NamedTuple):
