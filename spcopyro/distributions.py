@@ -22,15 +22,11 @@ from __future__ import annotations
 import torch
 from pyro.distributions import TorchDistribution, constraints
 
+from spcopyro._util.multinomial import multinomial_counts_log_prob  # [..., K] -> [...]
+
+__all__ = ["MultinomialCounts", "multinomial_counts_log_prob"]
+
 _EMPTY = torch.Size()
-
-
-def multinomial_counts_log_prob(value: torch.Tensor, log_probs: torch.Tensor) -> torch.Tensor:
-    """The log density above for counts ``value`` ``[..., K]`` and ``log_probs`` ``[..., K]``."""
-    # 0 * log 0 = 0: a zero count contributes nothing even where p_k = 0.
-    dot = torch.where(value > 0, value * log_probs, torch.zeros_like(log_probs)).sum(-1)
-    n = value.sum(-1)
-    return torch.lgamma(n + 1) - torch.lgamma(value + 1).sum(-1) + dot
 
 
 class MultinomialCounts(TorchDistribution):

@@ -30,8 +30,8 @@ from typing import NamedTuple
 
 import torch
 
+from spcopyro._util.multinomial import multinomial_counts_log_prob
 from spcopyro.config import SpCoConfig
-from spcopyro.distributions import multinomial_counts_log_prob
 from spcopyro.model import DTYPE, ModelData, potts_agreements
 
 

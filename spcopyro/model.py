@@ -15,15 +15,14 @@ import sys
 from typing import TYPE_CHECKING, NamedTuple
 
 import numpy as np
-import pyro
-import pyro.distributions as dist
 import torch
-from pyro.infer import ELBO
 
 from spcopyro.config import SpCoConfig
-from spcopyro.distributions import MultinomialCounts
 
 if TYPE_CHECKING:  # pragma: no cover
+    import pyro.distributions as dist
+    from pyro.infer import ELBO
+
     from spcopyro.data import CellCounts
     from spcopyro.data.footprint import SpreadSources
     from spcopyro.maps import OccupancyGrid
@@ -332,6 +331,8 @@ def calling_elbo() -> ELBO | None:
     ELBO's ``loss``, ``loss_and_grads`` or ``differentiable_loss`` is on the call stack whenever
     it runs a guide (``Predictive`` and a plain call run none). The walk starts at the caller's
     caller (the model, or the guide's ``forward``)."""
+    from pyro.infer import ELBO
+
     frame = sys._getframe(2)
     while frame is not None:
         owner = frame.f_locals.get("self")
@@ -373,6 +374,8 @@ def _table_prior(modality: Modality, config: SpCoConfig, L: int) -> dist.Distrib
     """Each concept's distribution over the modality's K_m items: the symmetric Dirichlet of
     eqs. (3), (4); over no items (the words of a house where none was heard, V = 0) the
     Dirichlet's simplex is the one empty vector, so the draw is that point (log density 0)."""
+    import pyro.distributions as dist
+
     K = modality.counts.shape[-1]
     if K == 0:  # Pyro's Dirichlet refuses an empty simplex
         return dist.Delta(torch.zeros((L, 0), dtype=DTYPE), event_dim=1)
@@ -444,6 +447,11 @@ def spcomapping_model(data: ModelData, config: SpCoConfig) -> None:
     on Spatial Concepts for Grounding Words Related to Places in Daily Environments", Frontiers in
     Robotics and AI 6:31, 2019.
     """
+    import pyro  # here: the sampler and the other methods use this module's data without Pyro
+    import pyro.distributions as dist
+
+    from spcopyro.distributions import MultinomialCounts
+
     check_model_data(data, config)
     L = config.num_concepts
 

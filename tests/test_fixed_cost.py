@@ -132,6 +132,51 @@ def test_a_fit_writes_and_reads_a_map_saver_pgm_without_opencv(tmp_path):
     assert (out / "map.pgm").read_bytes().startswith(b"P5\n")
 
 
+def test_a_default_fit_runs_without_pyro(tmp_path):
+    """A whole default fit of the embedded house (Gibbs, figures, refined) never imports Pyro
+    (about 200 modules, 0.05-0.1 s of its start-up): the model's data, the likelihood, the
+    sampler, its checkpoint and the method registry import none of it; the timings list it."""
+    out, timings = tmp_path / "fit", tmp_path / "timings.json"
+    subprocess.run([sys.executable, "-m", "spcopyro", "fit", "--sweeps", "2", "--out", str(out)],
+                   capture_output=True, text=True, env={**_env(), TIMINGS_ENV: str(timings)},
+                   timeout=300, check=True)  # fmt: skip
+    record = json.loads(timings.read_text())
+    assert record["figures"] is True and (out / "semantic_map.png").is_file()
+    assert "pyro" in OPTIONAL_HEAVY and "pyro" not in record["imported"], record["imported"]
+
+
+_PYRO_ON_USE = """
+import json, sys
+import spcopyro.gibbs, spcopyro.guides, spcopyro.model
+from spcopyro.fit.registry import INFERENCE_METHODS, get_method
+seen = {"names": list(INFERENCE_METHODS), "in": "svi" in INFERENCE_METHODS, "len":
+        len(INFERENCE_METHODS), "gibbs": type(get_method("gibbs")).__name__}
+seen["pyro before"] = "pyro" in sys.modules
+seen["kernel"] = spcopyro.gibbs.SpCoGibbs.__module__
+seen["guide"] = [spcopyro.guides.MeanFieldELBO.__module__, spcopyro.guides.WrongLossError.__name__]
+seen["svi"] = type(INFERENCE_METHODS["svi"]).__name__
+seen["same"] = INFERENCE_METHODS["svi"] is get_method("svi")
+seen["pyro after"] = "pyro" in sys.modules
+print(json.dumps(seen))
+"""
+
+
+def test_pyro_is_imported_where_its_names_are_used():
+    """spcopyro.gibbs's kernel names, spcopyro.guides's Pyro guide and the registry's methods
+    are imported on first use (the same objects as before), the registry's names without."""
+    from spcopyro.inference.names import INFERENCE_METHOD_NAMES
+
+    done = subprocess.run([sys.executable, "-c", _PYRO_ON_USE], capture_output=True, text=True,
+                          env=_env(), timeout=300, check=True)  # fmt: skip
+    seen = json.loads(done.stdout.strip().splitlines()[-1])
+    assert seen == {
+        "names": list(INFERENCE_METHOD_NAMES), "in": True, "len": len(INFERENCE_METHOD_NAMES),
+        "gibbs": "GibbsInference", "pyro before": False, "kernel": "spcopyro.gibbs.kernel",
+        "guide": ["spcopyro.guides.loss", "WrongLossError"], "svi": "SVIInference",
+        "same": True, "pyro after": True,
+    }  # fmt: skip
+
+
 def test_the_command_exits_with_mains_code():
     """``python -m spcopyro`` (console_main: main, gc.freeze, exit) returns main's status."""
     done = subprocess.run([sys.executable, "-m", "spcopyro", "where", "/nonexistent/fit", "x"],

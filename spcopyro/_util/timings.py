@@ -32,6 +32,7 @@ TIMINGS_ENV = "SPCOPYRO_TIMINGS"
 OPTIONAL_HEAVY = (
     "cv2",
     "matplotlib",
+    "pyro",
     "sklearn",
     "torchvision",
     "scipy.ndimage",
@@ -40,8 +41,8 @@ OPTIONAL_HEAVY = (
     "scipy.spatial",
 )
 """Modules a fit imports only where it uses them (images other than map_saver's pgm, figures,
-footprints, cluster and merge moves, snapping, a point estimate): :func:`imported_heavy` lists
-those loaded."""
+the svi method, Pyro's MCMC kernel and ``--sweeps auto``'s R-hat, footprints, cluster and merge
+moves, snapping, a point estimate): :func:`imported_heavy` lists those loaded."""
 
 
 def imported_heavy() -> list[str]:

@@ -112,14 +112,15 @@ def backend_used(options: object, config: object) -> str | None:
     ``inference.backend_used`` is said to be printed too."""
     from spcopyro.gibbs.backends import get_backend
     from spcopyro.gibbs.options import GibbsOptions
+
+    if isinstance(options, GibbsOptions):  # before the variational methods' imports
+        return get_backend(options.backend).name
     from spcopyro.guides.lbp_method import LBPOptions
     from spcopyro.guides.memoized import StochasticOptions, compiled_path
     from spcopyro.guides.options import VariationalOptions
     from spcopyro.guides.run import resolve_backend
     from spcopyro.guides.vi_gibbs import VIGibbsOptions
 
-    if isinstance(options, GibbsOptions):
-        return get_backend(options.backend).name
     if isinstance(options, VariationalOptions):
         return resolve_backend(options.backend)
     if isinstance(options, VIGibbsOptions):

@@ -11,21 +11,34 @@ backend supplies, ``options.py`` the sampler's options, ``cluster.py`` the Swend
 ``anneal.py`` the gamma schedule, ``hyperparameters.py`` (with ``hyper_targets.py`` and
 ``hyper_options.py``) alpha, the concentrations and gamma sampled inside the chain. The model's
 per-cell math is shared with every other inference method in :mod:`spcopyro.likelihood`.
+
+The kernel's names (:class:`SpCoGibbs` and its summaries) are imported on first use: the kernel
+imports Pyro (about 200 modules), which a fit that runs the sampler itself never calls.
 """
 
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
 from spcopyro.gibbs.hyper_options import HyperparameterOptions
-from spcopyro.gibbs.kernel import (
-    DEFAULT_SAVE_PARAMS,
-    SpCoGibbs,
-    label_summary,
-    mcmc_diagnostics,
-    mcmc_summary,
-)
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.run import GibbsChain, GibbsRun, advance, run_gibbs, start_chain
 from spcopyro.gibbs.sampler import StepInfo, init, step
 from spcopyro.gibbs.state import GibbsState
 from spcopyro.gibbs.sweep import gibbs_sweep, label_log_conditionals, log_joint
+
+if TYPE_CHECKING:  # pragma: no cover
+    from spcopyro.gibbs.kernel import (
+        DEFAULT_SAVE_PARAMS,
+        SpCoGibbs,
+        label_summary,
+        mcmc_diagnostics,
+        mcmc_summary,
+    )
+
+_KERNEL_NAMES = frozenset(
+    ("DEFAULT_SAVE_PARAMS", "SpCoGibbs", "label_summary", "mcmc_diagnostics", "mcmc_summary")
+)
 
 __all__ = [
     "DEFAULT_SAVE_PARAMS",
@@ -48,3 +61,12 @@ __all__ = [
     "start_chain",
     "step",
 ]
+
+
+def __getattr__(name: str) -> object:
+    """The kernel's names, imported with :mod:`spcopyro.gibbs.kernel` when first asked for."""
+    if name in _KERNEL_NAMES:
+        from spcopyro.gibbs import kernel
+
+        return getattr(kernel, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

@@ -16,7 +16,26 @@ the model's site names), :class:`~spcopyro.guides.loss.MeanFieldELBO` the loss S
 inference method built from the two.
 """
 
-from spcopyro.guides.loss import MeanFieldELBO
-from spcopyro.guides.mean_field import MeanFieldGuide, WrongLossError
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:  # pragma: no cover
+    from spcopyro.guides.loss import MeanFieldELBO
+    from spcopyro.guides.mean_field import MeanFieldGuide, WrongLossError
 
 __all__ = ["MeanFieldELBO", "MeanFieldGuide", "WrongLossError"]
+
+
+def __getattr__(name: str) -> object:
+    """The Pyro guide's names, imported when first asked for: Pyro (about 200 modules) is not
+    imported by the other methods' modules, nor by a Gibbs fit's checkpoint code."""
+    if name == "MeanFieldELBO":
+        from spcopyro.guides.loss import MeanFieldELBO
+
+        return MeanFieldELBO
+    if name in ("MeanFieldGuide", "WrongLossError"):
+        from spcopyro.guides import mean_field
+
+        return getattr(mean_field, name)
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
