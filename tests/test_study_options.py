@@ -7,6 +7,7 @@ Nothing here fits more than a geometry baseline on a tiny house; most tests stop
 from __future__ import annotations
 
 import dataclasses
+import logging
 import os
 from pathlib import Path
 
@@ -102,6 +103,19 @@ def test_a_maps_digest_covers_the_image_its_yaml_names(tmp_path, image):
     picture = tmp_path / image
     picture.write_bytes(picture.read_bytes() + b"\0")  # the image edited
     assert data_digest(data, 0) != before
+
+
+def test_a_study_says_a_map_yamls_warnings_once(tmp_path, caplog):
+    """Planning a study read a map source's yaml twice, resolving it and digesting its files,
+    and said each of its warnings (a misspelt key, a threshold out of range) twice."""
+    yaml = _map_with_image(tmp_path, "other.pgm")
+    yaml.write_text(yaml.read_text() + "mdoe: trinary\n")
+    text = f'[variants.a]\npreset = "paper-dp"\n[data.tour]\nmap = "{yaml}"\n'
+    with caplog.at_level(logging.WARNING, logger="spcopyro"):
+        cells_of(study_from_dict(tomllib.loads(text), source="s.toml"))
+    said = [r.getMessage() for r in caplog.records if r.levelno == logging.WARNING]
+    assert said == [f"{yaml}:7: unknown key 'mdoe' ignored, as map_server ignores it: did you "
+                    "mean 'mode'?"]  # fmt: skip
 
 
 TWICE = """

@@ -93,9 +93,10 @@ def _names_under(root: Path, kind: str) -> str:
 def _map_files(yaml_path: Path) -> list[Path]:
     """A map's yaml and the image its ``image:`` names (relative to the yaml's folder, as
     map_server reads it), whatever its name and extension; the yaml alone when it does not
-    parse or its image is missing (:func:`resolve_source` refuses such a map first)."""
+    parse or its image is missing (:func:`resolve_source` refuses such a map first). Its
+    warnings are not said again: :func:`resolve_source` read the yaml and said them."""
     try:
-        image = read_map_yaml(yaml_path).image
+        image = read_map_yaml(yaml_path, warn=False).image
     except MapFormatError:
         return [yaml_path]
     return [yaml_path, image] if image.is_file() else [yaml_path]
