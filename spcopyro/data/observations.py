@@ -28,7 +28,7 @@ import numpy as np
 
 from spcopyro._util.context import set_within
 from spcopyro._util.messages import echo
-from spcopyro.config import HYPERPARAMETER_FIELDS
+from spcopyro.config import HYPERPARAMETER_FIELDS, IMAGES, WORDS
 from spcopyro.data.text import _check_tokens, hidden_words_warning, tokenize
 
 logger = logging.getLogger("spcopyro")
@@ -37,7 +37,7 @@ __all__ = ["RESERVED_MODALITY_NAMES", "DataFormatError", "ModalityObservations",
 
 _MISSING = object()
 _MODALITY_NAME = re.compile(r"[a-z][a-z0-9_]*")  # also the file name modality_<name>.csv
-RESERVED_MODALITY_NAMES = ("images", "words")  # the two modalities Observations always holds
+RESERVED_MODALITY_NAMES = (IMAGES, WORDS)  # the two modalities Observations always holds
 SITE_NAMES_TAKEN = (
     "labels", "pi", "theta", "w", "potts",  # the model's sites
     "cells", "concepts", "observed_cells",  # its plates
