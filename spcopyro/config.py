@@ -311,6 +311,15 @@ class DataPreparation:
             footprint's likelihood, the tempered product prod_c p(x_t | C_c)^{w_tc}, equals the
             plain model's on the weighted counts sum_t w_tc x_t up to a constant, so the Pyro
             model, both Gibbs backends, CAVI and every other method read it unchanged.
+        word_footprint_radius: metres, or None (the default: ``footprint_radius``'s): the
+            utterances' own footprint radius, the images (and further modalities) keeping
+            ``footprint_radius``; 0: each utterance counted whole at its own cell (the paper's
+            words). In the model each utterance's likelihood is the tempered product
+            prod_c p(w_d | C_c)^{w_dc} over its own footprint (weights w_dc within this radius,
+            the disc: words have no direction; at 0 the one factor of its cell), each image's
+            over ``footprint_radius``'s. Why 0 may matter: a footprint's fractional counts break
+            ties between words said equally often at one spot (by the share of each utterance's
+            disc inside a concept; docs/real_houses.md, room1ldk5).
         footprint_kernel: ``"uniform"`` or ``"gaussian"`` (sigma = radius / 2) weights.
         footprint_fov: degrees: an image informs only the cells within +-fov/2 of its yaw
             (needs the data's image yaw); None: the whole disc. Words always use the disc.
@@ -329,6 +338,7 @@ class DataPreparation:
     word_weighting: WordWeightingSetting = "auto"
     snap_distance: float = DEFAULT_SNAP_DISTANCE
     footprint_radius: float = 0.0
+    word_footprint_radius: float | None = None
     footprint_kernel: FootprintKernel = "uniform"
     footprint_fov: float | None = None
     word_scaling: float = 1.0
@@ -351,6 +361,10 @@ class DataPreparation:
         radius = self.footprint_radius
         if not (_is_number(radius) and math.isfinite(radius) and radius >= 0):
             raise bad("footprint_radius", "must be a finite number of metres >= 0 (0: off)")
+        words = self.word_footprint_radius
+        if words is not None and not (_is_number(words) and math.isfinite(words) and words >= 0):
+            raise bad("word_footprint_radius", "must be None (footprint_radius's) or a finite "
+                      "number of metres >= 0 (0: each utterance at its own cell)")  # fmt: skip
         if self.footprint_kernel not in ("uniform", "gaussian"):
             raise bad("footprint_kernel", "must be 'uniform' or 'gaussian'")
         fov = self.footprint_fov
@@ -366,6 +380,22 @@ class DataPreparation:
     def replace(self, **changes: object) -> DataPreparation:
         """A copy with some fields changed (validated again)."""
         return dataclasses.replace(self, **changes)
+
+    @property
+    def words_radius(self) -> float:
+        """The utterances' footprint radius in metres: ``word_footprint_radius``, or
+        ``footprint_radius`` where that is None."""
+        words = self.word_footprint_radius
+        return self.footprint_radius if words is None else words
+
+    def to_json(self) -> dict[str, object]:
+        """The fields as JSON values, as saved (config.json, checkpoints, records):
+        ``word_footprint_radius`` only where set, so a preparation without it saves as before
+        it existed and what was saved then loads as it was."""
+        values = dataclasses.asdict(self)
+        if self.word_footprint_radius is None:
+            del values["word_footprint_radius"]
+        return values
 
 
 @dataclass(frozen=True)

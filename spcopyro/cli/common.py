@@ -227,11 +227,13 @@ def _placement_lines(
     """:func:`_summary`'s lines of a map with free cells: the observed cells (those the
     footprints reach too, given a footprint radius) and where the observations were placed."""
     observed = f"{len(counts.cells)} (where observations were placed)"
-    if preparation is not None and preparation.footprint_radius > 0:
-        spread = prepared_cell_counts(house.grid, house.observations, preparation,
-                                      source=house.source, warn=False)  # fmt: skip
-        observed += (f"; {len(spread.cells)} within their {preparation.footprint_radius:g} m "
-                     "footprints")  # fmt: skip
+    prep = preparation
+    if prep is not None and (prep.footprint_radius > 0 or prep.words_radius > 0):
+        spread = prepared_cell_counts(house.grid, house.observations, prep, source=house.source,
+                                      warn=False)  # fmt: skip
+        radius, words = prep.footprint_radius, prep.words_radius
+        own = "" if words == radius else f", words' {words:g} m"
+        observed += f"; {len(spread.cells)} within their {radius:g} m{own} footprints"
     p = counts.placement
     return [
         f"observed cells   {observed}",

@@ -223,7 +223,7 @@ def _request(
     given = dataclasses.asdict(options) if dataclasses.is_dataclass(options) else None
     request = {
         "method": args.method, "options": given, "model": settings.model.to_json(),
-        "data_preparation": dataclasses.asdict(settings.data), "sweeps": args.sweeps,
+        "data_preparation": settings.data.to_json(), "sweeps": args.sweeps,
         "chains": 1 if args.chains is None else int(args.chains),
         "seed": args.seed, "init": args.init, "init_from": args.init_from,
         "marginal_samples": args.marginal_samples, "point_estimate": args.point_estimate,

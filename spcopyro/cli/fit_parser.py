@@ -160,9 +160,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "cells (images as 100 draws, words at their cell, alpha scaled with the cells) from its "
         "map; auto: where the fit's concepts explain at least half of the images' variance "
         "(default: the preset's recommendation, auto with coarse unless --cell-size, "
-        "--feature-scaling, --word-scaling or --footprint* is given, else never). The "
-        "refinement's preparation is its own: a --feature-scaling, --word-scaling or "
-        "--footprint* given prepares the first stage only (a note names those it replaced; "
+        "--feature-scaling, --word-scaling, --footprint* or --word-footprint is given, else "
+        "never). The refinement's preparation is its own: a --feature-scaling, --word-scaling, "
+        "--footprint* or --word-footprint given prepares the first stage only (a note names "
+        "those it replaced; "
         "--cell-size map fits with them on the map's own cells). With no model grid coarser "
         "than the map (--cell-size map, a preset without a cell size, or one that rounds to "
         "the map's cells) auto does not refine and always is refused",
@@ -232,6 +233,14 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         choices=("uniform", "gaussian"),
         default=None,
         help="the footprint's weights: uniform (default) or gaussian (sigma = R/2)",
+    )
+    p.add_argument(
+        "--word-footprint",
+        type=float,
+        default=None,
+        metavar="RADIUS",
+        help="the utterances' own footprint radius, the images keeping --footprint's: "
+        "0 counts each utterance at its own cell (default: --footprint's)",
     )
     p.add_argument(
         "--footprint-fov",

@@ -29,7 +29,7 @@ grid's 22,179 cells in ~4 min, then 4-7 sweeps a second on the map's own cells, 
 docs/variational.md, "From spcopyro fit on a large map") and how to stop at the first stage."""
 
 REFINED_AWAY = ("cell_size", "feature_scaling", "word_scaling", "footprint",
-                "footprint_kernel", "footprint_fov")  # fmt: skip
+                "footprint_kernel", "footprint_fov", "word_footprint")  # fmt: skip
 """The options of the data preparation the refinement replaces (:mod:`spcopyro.fit.refine`):
 given on the command line, the recommended refinement is not run."""
 
@@ -75,7 +75,7 @@ def check_refinable(
     )
 
 
-_FLAGS = {"footprint_radius": "--footprint"}
+_FLAGS = {"footprint_radius": "--footprint", "word_footprint_radius": "--word-footprint"}
 """The :class:`~spcopyro.config.DataPreparation` fields whose option of :data:`REFINED_AWAY` is
 not ``--`` and the field's name in dashes."""
 

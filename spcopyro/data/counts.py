@@ -358,6 +358,7 @@ def cell_counts(
     footprint_fov: float | None = None,
     word_scaling: float = 1.0,
     warn: bool = True,
+    word_footprint_radius: float | None = None,
 ) -> CellCounts:
     """Sum the observations per free cell (the model's sufficient statistics).
 
@@ -388,16 +389,16 @@ def cell_counts(
     ``placement``; snapped ones are logged at INFO level; more than half of all observations
     off free space is logged as a warning (:meth:`PlacementReport.off_free_warning`).
 
-    Observation footprint (``footprint_radius`` > 0, :mod:`spcopyro.data.footprint`): every
-    placed observation o is spread over the free cells within that geodesic distance of its
-    cell with weights w_oc summing to 1 (``footprint_kernel``; ``footprint_fov`` degrees around
+    Observation footprint (``footprint_radius`` > 0, :mod:`spcopyro.data.footprint`): every placed
+    observation o is spread over the free cells within that geodesic distance of its cell with
+    weights w_oc summing to 1 (``footprint_kernel``; ``footprint_fov`` degrees around
     ``obs.image_yaw`` for images), so each sum above becomes sum_o w_oc counts_o and the observed
-    cells are every cell with a positive weight. ``footprint_radius = 0`` leaves the counts
-    exactly as without it. ``warn=False`` leaves out the warnings about observations left out
+    cells are every cell with a positive weight. ``footprint_radius = 0`` leaves the counts exactly
+    as without it; ``word_footprint_radius``, if not None, is the utterances' own (0: their cell).
+    ``warn=False`` leaves out the warnings about observations left out
     (:func:`say_placement_warnings`: a caller that counts the same observations twice says them
-    once, a fit after its placement check). ``word_scaling`` s
-    multiplies every utterance's word counts (or tf-idf weights) by s before they are placed
-    (``DataPreparation.word_scaling``).
+    once, a fit after its placement check). ``word_scaling`` s multiplies every utterance's word
+    counts (or tf-idf weights) by s before they are placed (``DataPreparation.word_scaling``).
 
     Counts are checked by :func:`check_count_totals` (finite, totals at most
     :data:`MAX_COUNT_TOTAL`): ``source``, the house folder the observations were read from
@@ -432,7 +433,8 @@ def cell_counts(
     word_cell, word_snapped, word_unplaced = place_observations(grid, obs.word_xy, snap_distance)
     further = [place_observations(grid, m.positions, snap_distance) for m in obs.modalities]
 
-    if footprint_radius:
+    words_radius = footprint_radius if word_footprint_radius is None else word_footprint_radius
+    if footprint_radius or words_radius:
         plain = cell_counts(grid, obs, feature_scaling=feature_scaling,
                             word_weighting=word_weighting, snap_distance=snap_distance,
                             vocabulary=vocab, source=source, word_scaling=word_scaling,
@@ -440,10 +442,10 @@ def cell_counts(
         placed = (image_cell, word_cell, [cell for cell, _, _ in further])
         # within shared_footprints (spcopyro fit), spread once for its summary and model data
         key = (feature_scaling, word_weighting, snap_distance, vocab, word_scaling,
-               footprint_radius, footprint_kernel, footprint_fov)  # fmt: skip
+               footprint_radius, footprint_kernel, footprint_fov, words_radius)  # fmt: skip
         return shared((grid, obs), key, lambda: _with_footprint(
-            plain, grid, obs, features, words, placed, footprint_radius, footprint_kernel,
-            footprint_fov,
+            plain, grid, obs, features, words, placed, (footprint_radius, words_radius),
+            footprint_kernel, footprint_fov,
         ))  # fmt: skip
     lost = scaled_away(obs.image_features, features)  # [n] images left with nothing
     image_ok = image_cell >= 0  # [T] bool
@@ -523,11 +525,11 @@ def prepared_cell_counts(
     that preparation reads (its model grid is ``grid``; ``cell_size`` is applied to the map
     before, not here)."""
     return cell_counts(
-        grid, obs, feature_scaling=preparation.feature_scaling,
-        word_weighting=preparation.word_weighting, snap_distance=preparation.snap_distance,
-        vocabulary=vocabulary, source=source, footprint_radius=preparation.footprint_radius,
-        footprint_kernel=preparation.footprint_kernel, footprint_fov=preparation.footprint_fov,
-        word_scaling=preparation.word_scaling, warn=warn,
+        grid, obs, word_scaling=preparation.word_scaling, source=source, warn=warn,
+        feature_scaling=preparation.feature_scaling, word_weighting=preparation.word_weighting,
+        footprint_radius=preparation.footprint_radius, footprint_fov=preparation.footprint_fov,
+        footprint_kernel=preparation.footprint_kernel, snap_distance=preparation.snap_distance,
+        word_footprint_radius=preparation.word_footprint_radius, vocabulary=vocabulary,
     )  # fmt: skip
 
 
@@ -538,12 +540,13 @@ def _with_footprint(
     features: np.ndarray,
     words: np.ndarray,
     placed: tuple[np.ndarray, np.ndarray, list[np.ndarray]],
-    radius: float,
+    radii: tuple[float, float],
     kernel: FootprintKernel,
     fov: float | None,
 ) -> CellCounts:
     """``plain`` (the counts without footprint: placement report, vocabulary) with every
-    observation spread over its footprint (:func:`~spcopyro.data.footprint.footprint_weights`).
+    observation spread over its footprint (:func:`~spcopyro.data.footprint.footprint_weights`):
+    ``radii`` (metres) the images' and further modalities', then the utterances' (0: own cell).
 
     ``features`` [T, K] and ``words`` [U, V] are the scaled / weighted rows per observation,
     ``placed`` the free index of each image, utterance and further observation (-1: unplaced).
@@ -554,13 +557,13 @@ def _with_footprint(
             "(pose_K.csv files give it); leave footprint_fov unset to use the whole disc"
         )
     image_cell, word_cell, further_cells = placed
-    bar = _footprint_bar(grid, radius, (image_cell, word_cell, *further_cells))
+    bar = _footprint_bar(grid, max(radii), (image_cell, word_cell, *further_cells))
     graph = free_cell_graph(grid)
-    image_w = footprint_weights(grid, image_cell, radius, kernel, yaw=obs.image_yaw, fov=fov,
+    image_w = footprint_weights(grid, image_cell, radii[0], kernel, yaw=obs.image_yaw, fov=fov,
                                 graph=graph, advance=bar.update)  # fmt: skip  # [T, N]
-    word_w = footprint_weights(grid, word_cell, radius, kernel, graph=graph,
+    word_w = footprint_weights(grid, word_cell, radii[1], kernel, graph=graph,
                                advance=bar.update)  # fmt: skip  # [U, N]
-    further_w = [footprint_weights(grid, c, radius, kernel, graph=graph, advance=bar.update)
+    further_w = [footprint_weights(grid, c, radii[0], kernel, graph=graph, advance=bar.update)
                  for c in further_cells]  # fmt: skip
     reached = [np.unique(w.indices) for w in (image_w, word_w, *further_w)]
     cells = np.unique(np.concatenate(reached)).astype(np.int64)  # [M]

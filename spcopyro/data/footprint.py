@@ -41,6 +41,11 @@ Euclidean one by at most 8%. Unknown and occupied cells are never reached.
 footprint only if its bearing from the image's cell lies within +-fov/2 of the yaw (the cell
 itself always is). Words have no direction and use the full disc.
 
+**The words' own radius** (``DataPreparation.word_footprint_radius``; None: the images'): each
+observation's tempered product is over its own footprint, so the utterances may use another
+radius than the images, 0 counting each whole at its own cell (the paper's words) while the
+images keep their footprint.
+
 **Factored counts.** The weighted counts are a product, :math:`\tilde x = A X`: ``A`` [M, S]
 the footprints' weights on the observed cells and ``X`` [S, K] the counts of the S distinct
 footprints (observations sharing a cell share one, unless a field of view tells them apart).

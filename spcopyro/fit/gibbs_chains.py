@@ -147,7 +147,7 @@ def gibbs_outputs(
 def preparation_record(settings: SpCoSettings) -> dict[str, object]:
     """The data preparation as a checkpoint records it: the footprint fields only when the
     footprint is on, so checkpoints made before it existed still resume."""
-    record = dataclasses.asdict(settings.data)
+    record = settings.data.to_json()  # word_footprint_radius only where set
     if not settings.data.footprint_radius:
         for name in ("footprint_radius", "footprint_kernel", "footprint_fov"):
             record.pop(name)

@@ -136,12 +136,12 @@ def refined_settings(settings: SpCoSettings, model_cells: int, map_cells: int) -
     scale = (map_cells / model_cells) ** 2 if model_cells > 0 else 1.0
     return settings.replace(
         alpha=settings.model.alpha * scale, feature_scaling="floor100", word_scaling=1.0,
-        footprint_radius=0.0, footprint_fov=None, cell_size=None,
+        footprint_radius=0.0, word_footprint_radius=None, footprint_fov=None, cell_size=None,
     )  # fmt: skip
 
 
 REPLACED_FIELDS = ("feature_scaling", "word_scaling", "footprint_radius", "footprint_kernel",
-                   "footprint_fov")  # fmt: skip
+                   "footprint_fov", "word_footprint_radius")  # fmt: skip
 """The :class:`~spcopyro.config.DataPreparation` fields :func:`refined_settings` sets a value of
 its own for (the cell size too, but the refinement is on the map's cells by definition)."""
 
@@ -163,7 +163,9 @@ def replaced_preparation(
     ``settings`` came from (``settings.preset``; every field of settings made without one). A
     footprint's kernel or field of view counts only where the first stage had a footprint (one
     given without it did nothing there, and is not replaced); the refinement's is
-    :data:`UNUSED` where it has none. Empty for a preset's own preparation (the default fit:
+    :data:`UNUSED` where it has none. The words' own radius counts only where given (None is
+    ``footprint_radius``'s), against the refinement's words at their cell (0). Empty for a
+    preset's own preparation (the default fit:
     preset ``coarse``'s is the one the refinement is made to replace)."""
     name = settings.preset
     own = preset(name, num_concepts=settings.model.num_concepts).data if name in PRESETS else None
@@ -171,6 +173,10 @@ def replaced_preparation(
     replaced: dict[str, dict[str, object]] = {}
     for field in REPLACED_FIELDS:
         given, used = getattr(first, field), getattr(refined, field)
+        if field == "word_footprint_radius":
+            if given is None:
+                continue  # the words' radius is footprint_radius's, named under that
+            used = refined.words_radius  # the refinement's words: at their cell (its footprint's)
         if own is not None and field not in settings.chosen and given == getattr(own, field):
             continue  # the preset's value, not the caller's
         if field in ("footprint_kernel", "footprint_fov"):
@@ -309,7 +315,7 @@ def refine_chains(
         **decision.to_json(),
         "coarse": {
             "cell_size": float(model.grid.resolution), "free_cells": int(model.grid.num_free),
-            "alpha": float(settings.model.alpha), "preparation": dataclasses.asdict(settings.data),
+            "alpha": float(settings.model.alpha), "preparation": settings.data.to_json(),
             "best_log_joint": float(first.best_objective),
             "concepts": len(first.concepts_in_use()),
             "sweeps": len(first.trace.objective),
@@ -321,7 +327,7 @@ def refine_chains(
                if first.inference.get("hyperparameters") else {}),
         },
         "alpha": float(refined.model.alpha),
-        "preparation": dataclasses.asdict(refined.data),  # the refinement's (config.json's data)
+        "preparation": refined.data.to_json(),  # the refinement's (config.json's data)
     }  # fmt: skip
     return decision, [
         dataclasses.replace(r, inference={**r.inference, "refine": record}) for r in refits

@@ -101,7 +101,7 @@ def preparation_warnings(data: DataPreparation) -> list[str]:
     kernel other than the default ``"uniform"``, or a field of view, with ``footprint_radius``
     0, where every observation counts in its own cell only and neither is read (the fit's
     counts are the paper's, as if they were not given)."""
-    if data.footprint_radius:
+    if data.footprint_radius or data.words_radius:  # the words' footprint reads the kernel
         return []
     given = []
     if data.footprint_kernel != "uniform":

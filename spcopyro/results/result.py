@@ -16,7 +16,6 @@ to treat with care are in :mod:`spcopyro.results.where`.
 from __future__ import annotations
 
 import csv
-import dataclasses
 import functools
 import json
 import os
@@ -423,7 +422,7 @@ class SpCoResult:
         then the :attr:`provenance` entries (data source, software versions)."""
         settings = {
             "model": self.config.to_json(),
-            "data": dataclasses.asdict(self.preparation),
+            "data": self.preparation.to_json(),
             "method": self.method,
             "inference": self.inference,
         }

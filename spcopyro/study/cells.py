@@ -111,7 +111,7 @@ def _settings_json(variant: Variant) -> dict[str, object]:
     settings = variant.spco_settings(None)
     return {
         "model": dataclasses.asdict(settings.model),
-        "data": dataclasses.asdict(settings.data),
+        "data": settings.data.to_json(),
         "options": dataclasses.asdict(variant.method_options()),  # type: ignore[call-overload]
         "fit": dict(variant.fit),
     }

@@ -1,0 +1,163 @@
+"""``DataPreparation.word_footprint_radius`` (issue 21): the utterances' own footprint radius, the
+images keeping ``footprint_radius``'s (0: each utterance counted whole at its own cell).
+
+Checked: the counts (words as without a footprint, images as with it, and the converse), None
+the same as ``footprint_radius``, bad values refused, the saved preparation (no key where unset,
+so an existing config.json is unchanged; round-trips where set), ``spcopyro fit --word-footprint``
+reaching config.json and the loaded result, the fit's data line, and the refinement (which counts
+words at their cell) replacing it only where it differs.
+"""
+
+from __future__ import annotations
+
+import argparse
+import dataclasses
+import json
+
+import numpy as np
+import pytest
+from gibbs_problems import tiny_grid
+from test_footprint import ROWS, observations
+
+from spcopyro.cli.fit_refine import prepares_data, replaced_options
+from spcopyro.cli.fit_summary import data_line
+from spcopyro.cli.main import main
+from spcopyro.config import DataPreparation, preset
+from spcopyro.data import cell_counts, prepared_cell_counts
+from spcopyro.fit.refine import refined_settings
+from spcopyro.results.result import SpCoResult
+
+
+@pytest.fixture
+def problem(rng):
+    grid = tiny_grid(ROWS)
+    return grid, observations(grid, rng)
+
+
+def _prepared(grid, obs, **changes):
+    data = DataPreparation(snap_distance=0.0, word_weighting="count", **changes)
+    return prepared_cell_counts(grid, obs, data)
+
+
+def _rows(counts, cells: np.ndarray, matrix: str) -> np.ndarray:
+    """``counts``' rows of ``matrix`` at the free indices ``cells`` (zero where not observed)."""
+    values = getattr(counts, matrix)  # [M, K]
+    out = np.zeros((cells.size, values.shape[1]))
+    at = np.searchsorted(counts.cells, cells)
+    found = (at < counts.cells.size) & (
+        counts.cells[np.minimum(at, counts.cells.size - 1)] == cells
+    )
+    out[found] = values[at[found]]
+    return out
+
+
+def test_words_at_their_cell_while_the_images_keep_the_footprint(problem):
+    grid, obs = problem
+    plain = cell_counts(grid, obs, snap_distance=0.0)
+    spread = cell_counts(grid, obs, snap_distance=0.0, footprint_radius=0.3)
+    mixed = _prepared(grid, obs, footprint_radius=0.3, word_footprint_radius=0.0)
+    # the images (and further modalities) as with the footprint, on the cells they reach
+    np.testing.assert_array_equal(_rows(mixed, spread.cells, "image_counts"), spread.image_counts)
+    assert mixed.image_counts.sum() == pytest.approx(spread.image_counts.sum())
+    objects = mixed.modalities[0].counts  # [M, 2]
+    np.testing.assert_array_equal(
+        objects[np.isin(mixed.cells, spread.cells)],
+        spread.modalities[0].counts[np.isin(spread.cells, mixed.cells)],
+    )
+    assert objects.sum() == pytest.approx(spread.modalities[0].counts.sum())
+    assert set(mixed.cells) < set(spread.cells)  # the words' spread reached more
+    # the words: whole at their own cell, as without a footprint, and nowhere else
+    np.testing.assert_array_equal(_rows(mixed, plain.cells, "word_counts"), plain.word_counts)
+    assert mixed.word_counts.sum() == plain.word_counts.sum()
+    assert np.count_nonzero(mixed.word_counts.sum(axis=1)) == len(obs.utterances)
+    spread_words = _rows(mixed, spread.cells, "word_counts")  # the footprint spread them
+    assert not np.allclose(spread_words, spread.word_counts)
+    # the factored form a sampler may read is the same counts
+    np.testing.assert_allclose(mixed.spread["words"].dense(), mixed.word_counts)
+
+
+def test_words_may_have_a_footprint_while_the_images_count_at_their_cell(problem):
+    grid, obs = problem
+    plain = cell_counts(grid, obs, snap_distance=0.0)
+    spread = cell_counts(grid, obs, snap_distance=0.0, footprint_radius=0.3)
+    words = _prepared(grid, obs, footprint_radius=0.0, word_footprint_radius=0.3)
+    np.testing.assert_allclose(_rows(words, spread.cells, "word_counts"), spread.word_counts)
+    np.testing.assert_array_equal(_rows(words, plain.cells, "image_counts"), plain.image_counts)
+    assert words.image_counts.sum() == pytest.approx(plain.image_counts.sum())
+
+
+def test_none_is_the_footprint_s_radius(problem):
+    grid, obs = problem
+    same = _prepared(grid, obs, footprint_radius=0.3, word_footprint_radius=0.3)
+    unset = _prepared(grid, obs, footprint_radius=0.3)
+    for name in ("cells", "image_counts", "word_counts"):
+        np.testing.assert_array_equal(getattr(same, name), getattr(unset, name))
+    assert DataPreparation(footprint_radius=0.75).words_radius == 0.75
+    assert DataPreparation(footprint_radius=0.75, word_footprint_radius=0).words_radius == 0
+
+
+@pytest.mark.parametrize("value", [-0.5, float("nan"), float("inf"), "0", True])
+def test_a_bad_word_footprint_is_refused(value):
+    with pytest.raises(ValueError, match=r"DataPreparation.word_footprint_radius=.*metres >= 0"):
+        DataPreparation(word_footprint_radius=value)
+
+
+def test_the_saved_preparation_leaves_it_out_unless_set():
+    before = ["feature_scaling", "word_weighting", "snap_distance", "footprint_radius",
+              "footprint_kernel", "footprint_fov", "word_scaling", "cell_size"]  # fmt: skip
+    for data in (DataPreparation(), preset("coarse").data, preset("paper-dp").data):
+        saved = data.to_json()
+        assert sorted(saved) == sorted(before)  # config.json as before the option existed
+        assert saved == {k: v for k, v in dataclasses.asdict(data).items() if k in before}
+        assert DataPreparation(**saved) == data
+    words = preset("coarse", word_footprint_radius=0.0).data
+    assert words.to_json()["word_footprint_radius"] == 0.0
+    assert DataPreparation(**json.loads(json.dumps(words.to_json()))) == words
+
+
+def test_fit_word_footprint_reaches_config_json_and_the_loaded_result(tmp_path):
+    out = tmp_path / "fit"
+    argv = [
+        "fit",
+        "--sweeps",
+        "3",
+        "--backend",
+        "torch",
+        "--footprint",
+        "0.5",
+        "--word-footprint",
+        "0",
+        "--no-figures",
+        "--refine",
+        "never",
+        "--out",
+        str(out),
+    ]
+    assert main(argv) == 0  # fmt: skip
+    saved = json.loads((out / "config.json").read_text())["data"]
+    assert saved["footprint_radius"] == 0.5 and saved["word_footprint_radius"] == 0.0
+    loaded = SpCoResult.load(out).preparation
+    assert loaded.footprint_radius == 0.5 and loaded.word_footprint_radius == 0.0
+
+
+def test_the_data_line_names_the_words_footprint():
+    assert "footprint 0.75 m (uniform, words at cell)" in data_line(
+        preset("coarse", word_footprint_radius=0.0).data
+    )
+    assert "footprint 0 m (uniform, words 0.5 m)" in data_line(
+        DataPreparation(word_footprint_radius=0.5)
+    )
+    assert "words" not in data_line(preset("coarse", word_footprint_radius=0.75).data)
+
+
+def test_the_refinement_counts_words_at_their_cell():
+    spread = preset("coarse", word_footprint_radius=0.5)
+    refined = refined_settings(spread, 100, 2500).data
+    assert refined.word_footprint_radius is None and refined.words_radius == 0.0
+    assert replaced_options(spread, refined) == {
+        "--word-footprint": {"given": 0.5, "refinement": 0.0}
+    }
+    at_cell = preset("coarse", word_footprint_radius=0.0)  # what the refinement does too
+    assert replaced_options(at_cell, refined_settings(at_cell, 100, 2500).data) == {}
+    given = argparse.Namespace(word_footprint=0.0)
+    assert prepares_data(given)  # a preparation of its own: no refinement by default
