@@ -145,6 +145,25 @@ def test_a_default_fit_runs_without_pyro(tmp_path):
     assert "pyro" in OPTIONAL_HEAVY and "pyro" not in record["imported"], record["imported"]
 
 
+def test_a_variational_fit_other_than_svi_runs_without_pyro(tmp_path):
+    """A cavi fit (and lbp's, stochastic-vi's, vi-gibbs') never imports Pyro: whether Ctrl-C
+    keeps its checkpoint asks only the fitted method whether it resumes
+    (:func:`spcopyro.cli.fit_resume.is_resumable`), not every method (svi's module imports
+    Pyro); the methods that resume are the same."""
+    from spcopyro.cli.fit_resume import is_resumable, resumable_methods
+
+    out, timings = tmp_path / "fit", tmp_path / "timings.json"
+    subprocess.run([sys.executable, "-m", "spcopyro", "fit", "--method", "cavi", "--sweeps", "2",
+                    "--no-figures", "--out", str(out)], capture_output=True, text=True,
+                   env={**_env(), TIMINGS_ENV: str(timings)}, timeout=300, check=True)  # fmt: skip
+    record = json.loads(timings.read_text())
+    assert (out / "labels.npy").is_file()
+    assert "pyro" not in record["imported"], record["imported"]
+    assert resumable_methods() == ["cavi", "lbp", "svi", "stochastic-vi"]
+    assert not is_resumable("gibbs") and not is_resumable("vi-gibbs")
+    assert not is_resumable("no-such-method")
+
+
 _PYRO_ON_USE = """
 import json, sys
 import spcopyro.gibbs, spcopyro.guides, spcopyro.model

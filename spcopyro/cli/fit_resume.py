@@ -19,6 +19,7 @@ __all__ = [
     "error_note",
     "interrupted_before_fit",
     "interrupted_message",
+    "is_resumable",
     "keeps_checkpoint",
     "keeps_finished_fit",
     "no_checkpoint_flags",
@@ -34,13 +35,24 @@ RESUME_PREFIX = "--res"
 ``--region-moves``)."""
 
 
-def resumable_methods() -> list[str]:
-    """The variational methods whose fit is saved on Ctrl-C (:mod:`spcopyro.guides.checkpoint`)."""
+def is_resumable(name: str) -> bool:
+    """Whether the method called ``name`` is a variational method whose fit is saved on Ctrl-C
+    (:mod:`spcopyro.guides.checkpoint`); only that method's module is imported (the registry
+    makes each on first lookup, and svi's imports Pyro). An unknown name: False."""
     from spcopyro.fit.registry import INFERENCE_METHODS
 
-    return [
-        name for name, method in INFERENCE_METHODS.items() if getattr(method, "resumable", False)
-    ]  # a method may implement the protocol alone
+    if name not in INFERENCE_METHODS:
+        return False
+    return bool(getattr(INFERENCE_METHODS[name], "resumable", False))  # the protocol alone: False
+
+
+def resumable_methods() -> list[str]:
+    """The variational methods whose fit is saved on Ctrl-C, as messages list them: makes every
+    method (imports all their modules, Pyro among them); one fit's checks use
+    :func:`is_resumable`."""
+    from spcopyro.fit.registry import INFERENCE_METHODS
+
+    return [name for name in INFERENCE_METHODS if is_resumable(name)]
 
 
 def one_fit_for_sweeps(args: argparse.Namespace) -> bool:
@@ -64,14 +76,14 @@ def keeps_checkpoint(args: argparse.Namespace) -> bool:
     ``--sweeps``, or one fit of a variational method that resumes; never an ``--update``."""
     if args.method == "gibbs":
         return args.sweeps != "auto" and args.update is None
-    return args.method in resumable_methods() and one_fit_for_sweeps(args)
+    return is_resumable(args.method) and one_fit_for_sweeps(args)
 
 
 def no_checkpoint_flags(args: argparse.Namespace) -> str:
     """The flags for which this fit keeps no checkpoint, as ``--resume``'s refusal names them:
     ``--chains K`` for several fits of a method that resumes one (``--sweeps N --method cavi``
     alone was named, which does keep one), else ``--sweeps`` and ``--method``."""
-    several = args.chains not in (None, 1) and args.method in resumable_methods()
+    several = args.chains not in (None, 1) and is_resumable(args.method)
     if several and args.sweeps != "auto" and args.update is None:
         return f"--method {args.method} --chains {args.chains}"
     return f"--sweeps {args.sweeps} --method {args.method}"
@@ -165,7 +177,7 @@ def _why_none(args: argparse.Namespace, out: Path, finished: bool) -> str:
         return "--update"
     if keeps_checkpoint(args):
         return "no sweep was done" if args.method == "gibbs" else "no iteration was done"
-    if args.method in resumable_methods():
+    if is_resumable(args.method):
         return f"--chains {args.chains}: {with_article(args.method)} checkpoint holds one fit"
     return f"the {args.method!r} method"
 
