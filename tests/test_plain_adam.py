@@ -39,7 +39,34 @@ def test_the_updates_are_torch_adams_bit_for_bit(dtype, lr, betas, eps):
         assert torch.equal(mine, theirs)
     state = reference.state[theirs]
     assert torch.equal(plain.state[0]["exp_avg_sq"], state["exp_avg_sq"])
-    assert plain.state[0]["step"] == float(state["step"])
+    assert torch.equal(plain.state[0]["step"], state["step"])  # a 0-d tensor, as torch's
+    assert plain.state[0]["step"].dtype == state["step"].dtype
+
+
+def test_a_state_saved_with_a_number_for_the_step_loads_and_goes_on():
+    """Before PlainAdam called torch's functional adam its step was a Python float; such a
+    state still loads (the step made a 0-d tensor) and gives the steps an unbroken run gives."""
+    g = torch.Generator().manual_seed(1)
+    grads = [torch.randn(5, generator=g, dtype=torch.float64) for _ in range(12)]
+    start = torch.randn(5, generator=g, dtype=torch.float64)
+
+    def run(optimiser: PlainAdam, param: torch.Tensor, steps: list[torch.Tensor]) -> None:
+        for grad in steps:
+            param.grad = grad.clone()
+            optimiser.step()
+
+    whole = start.clone().requires_grad_()
+    run(PlainAdam([whole], lr=0.1), whole, grads)
+    half = start.clone().requires_grad_()
+    first = PlainAdam([half], lr=0.1)
+    run(first, half, grads[:5])
+    saved = first.state_dict()
+    saved["state"][0]["step"] = float(saved["state"][0]["step"])  # the old format: 5.0
+    second = PlainAdam([half], lr=0.1)
+    second.load_state_dict(saved)
+    run(second, half, grads[5:])
+    assert torch.equal(half, whole)
+    assert torch.equal(second.state[0]["step"], torch.tensor(12.0))
 
 
 def test_a_pyro_svi_run_is_pyro_adams_bit_for_bit_and_its_state_round_trips(tmp_path):

@@ -1,14 +1,16 @@
-"""Adam for the SVI guide's parameters without :mod:`torch.optim`: the same update, bit for bit.
+"""Adam for the SVI guide's parameters without a :class:`torch.optim.Optimizer`: the same update.
 
-:class:`PlainAdam` is :class:`torch.optim.Adam` with its defaults (no weight decay, no amsgrad,
-not maximising) on its single-tensor path, the one it takes for CPU tensors (``foreach`` and
-``fused`` off there), written out op for op in the same order, so a seeded fit gives the same
-bits (``tests/test_plain_adam.py`` compares them). It exists because every
+:class:`PlainAdam` holds the per-parameter state of :class:`torch.optim.Adam` with its defaults
+(no weight decay, no amsgrad, not maximising) and updates it with torch's own functional
+``torch.optim.adam.adam`` on its single-tensor path (``foreach=False``, the path
+:class:`torch.optim.Adam` takes for CPU tensors), so a seeded fit gives the same bits
+(``tests/test_plain_adam.py`` compares them). It exists because every
 :class:`torch.optim.Optimizer` imports ``torch._dynamo`` on first use, whatever its options:
 ``add_param_group``, called by the constructor, is wrapped in ``torch._disable_dynamo``, which
 imports it on its first call, and ``step`` in ``_use_grad_for_differentiable``, which imports it
 on every call (``foreach``, ``fused``, ``capturable`` and ``differentiable`` change neither;
-Pyro's ``ClippedAdam`` is a ``torch.optim.Optimizer`` too). That import cost 1.1 s once a
+Pyro's ``ClippedAdam`` is a ``torch.optim.Optimizer`` too). The functional ``adam`` imports it
+only under compilation (checked in a fresh process, torch 2.14.1). That import cost 1.1 s once a
 process, most of a short ``spcopyro fit --method svi`` (docs/speed.md, "An SVI step on
 room1dk5"). Used through :class:`pyro.optim.PyroOptim` (:func:`plain_adam`), one instance per
 parameter as Pyro's ``Adam`` makes them; ``state_dict`` / ``load_state_dict`` keep Pyro's
@@ -21,6 +23,7 @@ from collections.abc import Callable, Iterable
 
 import torch
 from pyro.optim import PyroOptim
+from torch.optim.adam import adam as _functional_adam
 
 
 class PlainAdam:
@@ -40,37 +43,37 @@ class PlainAdam:
                              f"lr={lr}, betas={betas}, eps={eps}")  # fmt: skip
         self.params = list(params)
         self.lr, self.betas, self.eps = float(lr), (float(betas[0]), float(betas[1])), float(eps)
-        self.state: dict[int, dict[str, torch.Tensor | float]] = {}
+        self.state: dict[int, dict[str, torch.Tensor]] = {}
 
     @torch.no_grad()
     def step(self, closure: Callable[[], float] | None = None) -> float | None:
-        """One update of every parameter with a gradient: torch's ``_single_tensor_adam``."""
+        """One update of every parameter with a gradient: torch's functional ``adam``."""
         loss = None
         if closure is not None:
             with torch.enable_grad():
                 loss = closure()
-        beta1, beta2 = self.betas
+        params, grads, exp_avgs, exp_avg_sqs, steps = [], [], [], [], []
         for k, param in enumerate(self.params):
-            grad = param.grad
-            if grad is None:
+            if param.grad is None:
                 continue
-            if grad.is_sparse:
+            if param.grad.is_sparse:
                 raise RuntimeError("PlainAdam does not support sparse gradients")
             state = self.state.setdefault(k, {})
-            if not state:
-                state["step"] = 0.0
+            if not state:  # as torch.optim.Adam: the step a 0-d tensor of its scalar dtype
+                state["step"] = torch.tensor(0.0, dtype=_step_dtype())
                 state["exp_avg"] = torch.zeros_like(param, memory_format=torch.preserve_format)
                 state["exp_avg_sq"] = torch.zeros_like(param, memory_format=torch.preserve_format)
-            exp_avg, exp_avg_sq = state["exp_avg"], state["exp_avg_sq"]
-            state["step"] = step = state["step"] + 1.0
-            exp_avg.lerp_(grad, 1 - beta1)
-            exp_avg_sq.mul_(beta2).addcmul_(grad, grad, value=1 - beta2)
-            bias_correction1 = 1 - beta1**step
-            bias_correction2 = 1 - beta2**step
-            step_size = self.lr / bias_correction1
-            bias_correction2_sqrt = bias_correction2**0.5
-            denom = (exp_avg_sq.sqrt() / bias_correction2_sqrt).add_(self.eps)
-            param.addcdiv_(exp_avg, denom, value=-step_size)
+            params.append(param)
+            grads.append(param.grad)
+            exp_avgs.append(state["exp_avg"])
+            exp_avg_sqs.append(state["exp_avg_sq"])
+            steps.append(state["step"])  # [], incremented in place by adam
+        if params:
+            beta1, beta2 = self.betas
+            # only the arguments torch >= 2.1 (pyproject's pin) has
+            _functional_adam(params, grads, exp_avgs, exp_avg_sqs, [], steps, foreach=False,
+                             amsgrad=False, beta1=beta1, beta2=beta2, lr=self.lr,
+                             weight_decay=0.0, eps=self.eps, maximize=False)  # fmt: skip
         return loss
 
     def zero_grad(self, set_to_none: bool = True) -> None:
@@ -82,17 +85,31 @@ class PlainAdam:
                     param.grad.zero_()
 
     def state_dict(self) -> dict:
-        """The moments and step counts by parameter index, and the hyperparameters."""
-        state = {k: {name: v.clone() if isinstance(v, torch.Tensor) else v
-                     for name, v in s.items()} for k, s in self.state.items()}  # fmt: skip
+        """The moments and step counts (0-d tensors) by parameter index, and the
+        hyperparameters."""
+        state = {k: {name: v.clone() for name, v in s.items()} for k, s in self.state.items()}
         return {"state": state, "lr": self.lr, "betas": self.betas, "eps": self.eps}
 
     def load_state_dict(self, state_dict: dict) -> None:
-        """The state of :meth:`state_dict` (of an optimiser of as many parameters)."""
+        """The state of :meth:`state_dict` (of an optimiser of as many parameters); a step saved
+        as a number (before the step was a tensor) is made the 0-d tensor ``adam`` needs."""
         self.lr, self.betas, self.eps = state_dict["lr"], state_dict["betas"], state_dict["eps"]
-        self.state = {int(k): {name: v.clone() if isinstance(v, torch.Tensor) else v
-                               for name, v in s.items()}
-                      for k, s in state_dict["state"].items()}  # fmt: skip
+        self.state = {
+            int(k): {name: _loaded(v) for name, v in s.items()}
+            for k, s in state_dict["state"].items()
+        }
+
+
+def _step_dtype() -> torch.dtype:
+    """The dtype of torch.optim.Adam's step tensor (``torch.optim.optimizer._get_scalar_dtype``)."""
+    return torch.float64 if torch.get_default_dtype() == torch.float64 else torch.float32
+
+
+def _loaded(value: torch.Tensor | float) -> torch.Tensor:
+    """A copy of one saved state entry; a number (only ever a step) becomes a 0-d tensor."""
+    if isinstance(value, torch.Tensor):
+        return value.clone()
+    return torch.tensor(float(value), dtype=_step_dtype())
 
 
 def plain_adam(optim_args: dict | Callable[[str], dict]) -> PyroOptim:
