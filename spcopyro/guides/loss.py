@@ -173,17 +173,6 @@ def _check_model(model_trace: poutine.Trace, data: ModelData, config: SpCoConfig
     return True
 
 
-def elbo_particle(
-    model: Program, guide: Program, data: ModelData, config: SpCoConfig
-) -> torch.Tensor:
-    """One draw of the ELBO estimate (module docstring), differentiable in the guide's params;
-    ValueError for a model whose density is not the one it takes in closed form
-    (:func:`_check_model`)."""
-    model_trace, guide_trace = traces(model, guide, data, config)
-    _check_model(model_trace, data, config)
-    return particle_estimate(model_trace, guide_trace, data, config)
-
-
 def particle_estimate(
     model_trace: poutine.Trace, guide_trace: poutine.Trace, data: ModelData, config: SpCoConfig
 ) -> torch.Tensor:
