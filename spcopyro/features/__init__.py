@@ -15,8 +15,7 @@ importing the command line does not import torchvision.
 
 from __future__ import annotations
 
-import importlib
-from typing import Any
+from spcopyro._util.lazy import lazy_names
 
 _EXPORTS = {
     "backbone": (
@@ -64,12 +63,4 @@ _MODULE_OF = {name: module for module, names in _EXPORTS.items() for name in nam
 __all__ = sorted(_MODULE_OF)
 
 
-def __getattr__(name: str) -> Any:
-    module = _MODULE_OF.get(name)
-    if module is None:
-        raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
-    return getattr(importlib.import_module(f"{__name__}.{module}"), name)
-
-
-def __dir__() -> list[str]:
-    return sorted(set(globals()) | set(_MODULE_OF))
+__getattr__, __dir__ = lazy_names(__name__, _MODULE_OF)

@@ -7,97 +7,85 @@ experiments read this table. A new method is one module implementing
 
 from __future__ import annotations
 
-from collections.abc import Callable, Iterator, MutableMapping
+from collections.abc import Iterator, MutableMapping
+from typing import TYPE_CHECKING
 
+from spcopyro._util.lazy import load
 from spcopyro.inference.names import DEFAULT_METHOD, INFERENCE_METHOD_NAMES
 from spcopyro.inference.protocol import InferenceMethod
 
-# Each method's module is imported when the method is first looked up: the variational methods
-# import what a Gibbs fit never runs (svi: Pyro, about 200 modules, 0.05-0.1 s of its start-up).
-
-
-def _gibbs() -> InferenceMethod:
+if TYPE_CHECKING:  # pragma: no cover (the import graph's edges, tests/test_architecture.py)
     from spcopyro.gibbs.method import GibbsInference
-
-    return GibbsInference()
-
-
-def _cavi() -> InferenceMethod:
     from spcopyro.guides.cavi_method import CAVIInference
-
-    return CAVIInference()
-
-
-def _lbp() -> InferenceMethod:
     from spcopyro.guides.lbp_method import LBPInference
-
-    return LBPInference()
-
-
-def _svi() -> InferenceMethod:
-    from spcopyro.guides.svi_method import SVIInference
-
-    return SVIInference()
-
-
-def _stochastic_vi() -> InferenceMethod:
     from spcopyro.guides.memoized import StochasticVIInference
-
-    return StochasticVIInference()
-
-
-def _vi_gibbs() -> InferenceMethod:
+    from spcopyro.guides.svi_method import SVIInference
     from spcopyro.guides.vi_gibbs import VIGibbsInference
 
-    return VIGibbsInference()
+    _Made = (
+        GibbsInference
+        | CAVIInference
+        | LBPInference
+        | SVIInference
+        | StochasticVIInference
+        | VIGibbsInference
+    )
+
+_CLASSES: dict[str, tuple[str, str]] = {
+    "gibbs": ("spcopyro.gibbs.method", "GibbsInference"),
+    "cavi": ("spcopyro.guides.cavi_method", "CAVIInference"),
+    "lbp": ("spcopyro.guides.lbp_method", "LBPInference"),
+    "svi": ("spcopyro.guides.svi_method", "SVIInference"),
+    "stochastic-vi": ("spcopyro.guides.memoized", "StochasticVIInference"),
+    "vi-gibbs": ("spcopyro.guides.vi_gibbs", "VIGibbsInference"),
+}
+"""Each method's name and its class (module, class name), made when the method is first looked
+up: the variational methods import what a Gibbs fit never runs (svi: Pyro, about 200 modules,
+0.05-0.1 s of its start-up)."""
+
+
+def _make(module: str, cls: str) -> _Made:
+    """The method of class ``cls`` of ``module``, its module imported first."""
+    return load(module, cls)()
 
 
 class _Methods(MutableMapping[str, InferenceMethod]):
     """A dict of the methods by name whose values are made (their modules imported) when first
     read; names, order, ``in`` and ``len`` need no import."""
 
-    def __init__(self, loaders: dict[str, Callable[[], InferenceMethod]]) -> None:
-        self._loaders: dict[str, Callable[[], InferenceMethod] | None] = dict(loaders)
+    def __init__(self, classes: dict[str, tuple[str, str]]) -> None:
+        self._classes: dict[str, tuple[str, str] | None] = dict(classes)
         self._methods: dict[str, InferenceMethod] = {}
 
     def __getitem__(self, name: str) -> InferenceMethod:
         if name not in self._methods:
-            loader = self._loaders[name]  # KeyError for an unknown name, as a dict's
-            assert loader is not None  # a name set by hand is in _methods
-            self._methods[name] = loader()
+            home = self._classes[name]  # KeyError for an unknown name, as a dict's
+            assert home is not None  # a name set by hand is in _methods
+            self._methods[name] = _make(*home)
         return self._methods[name]
 
     def __setitem__(self, name: str, method: InferenceMethod) -> None:
-        self._loaders.setdefault(name, None)  # a new name goes last, as in a dict
+        self._classes.setdefault(name, None)  # a new name goes last, as in a dict
         self._methods[name] = method
 
     def __delitem__(self, name: str) -> None:
-        del self._loaders[name]
+        del self._classes[name]
         self._methods.pop(name, None)
 
     def __contains__(self, name: object) -> bool:
-        return name in self._loaders
+        return name in self._classes
 
     def __iter__(self) -> Iterator[str]:
-        return iter(self._loaders)
+        return iter(self._classes)
 
     def __len__(self) -> int:
-        return len(self._loaders)
+        return len(self._classes)
 
     def __repr__(self) -> str:
-        return f"INFERENCE_METHODS{tuple(self._loaders)}"
+        return f"INFERENCE_METHODS{tuple(self._classes)}"
 
 
-INFERENCE_METHODS: MutableMapping[str, InferenceMethod] = _Methods(
-    {
-        "gibbs": _gibbs,
-        "cavi": _cavi,
-        "lbp": _lbp,
-        "svi": _svi,
-        "stochastic-vi": _stochastic_vi,
-        "vi-gibbs": _vi_gibbs,
-    }
-)
+INFERENCE_METHODS: MutableMapping[str, InferenceMethod] = _Methods(_CLASSES)
 """Every method by name, in :data:`~spcopyro.inference.names.INFERENCE_METHOD_NAMES`' order;
 a method's module is imported when it is first looked up."""
 

@@ -20,6 +20,7 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+from spcopyro._util.lazy import lazy_names
 from spcopyro.gibbs.hyper_options import HyperparameterOptions
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.gibbs.run import GibbsChain, GibbsRun, advance, run_gibbs, start_chain
@@ -36,9 +37,11 @@ if TYPE_CHECKING:  # pragma: no cover
         mcmc_summary,
     )
 
-_KERNEL_NAMES = frozenset(
-    ("DEFAULT_SAVE_PARAMS", "SpCoGibbs", "label_summary", "mcmc_diagnostics", "mcmc_summary")
+_HOMES = dict.fromkeys(
+    ("DEFAULT_SAVE_PARAMS", "SpCoGibbs", "label_summary", "mcmc_diagnostics", "mcmc_summary"),
+    "kernel",
 )
+"""The names imported on first use and the module (of this package) that defines each."""
 
 __all__ = [
     "DEFAULT_SAVE_PARAMS",
@@ -63,10 +66,4 @@ __all__ = [
 ]
 
 
-def __getattr__(name: str) -> object:
-    """The kernel's names, imported with :mod:`spcopyro.gibbs.kernel` when first asked for."""
-    if name in _KERNEL_NAMES:
-        from spcopyro.gibbs import kernel
-
-        return getattr(kernel, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__, __dir__ = lazy_names(__name__, _HOMES)

@@ -20,6 +20,8 @@ from __future__ import annotations
 
 from typing import TYPE_CHECKING
 
+from spcopyro._util.lazy import lazy_names
+
 if TYPE_CHECKING:  # pragma: no cover
     from spcopyro.guides.loss import MeanFieldELBO
     from spcopyro.guides.mean_field import MeanFieldGuide, WrongLossError
@@ -27,15 +29,9 @@ if TYPE_CHECKING:  # pragma: no cover
 __all__ = ["MeanFieldELBO", "MeanFieldGuide", "WrongLossError"]
 
 
-def __getattr__(name: str) -> object:
-    """The Pyro guide's names, imported when first asked for: Pyro (about 200 modules) is not
-    imported by the other methods' modules, nor by a Gibbs fit's checkpoint code."""
-    if name == "MeanFieldELBO":
-        from spcopyro.guides.loss import MeanFieldELBO
+_HOMES = {"MeanFieldELBO": "loss", "MeanFieldGuide": "mean_field", "WrongLossError": "mean_field"}
+"""The Pyro guide's names and the module (of this package) that defines each: imported when first
+asked for, since Pyro (about 200 modules) is imported by neither the other methods' modules nor a
+Gibbs fit's checkpoint code."""
 
-        return MeanFieldELBO
-    if name in ("MeanFieldGuide", "WrongLossError"):
-        from spcopyro.guides import mean_field
-
-        return getattr(mean_field, name)
-    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+__getattr__, __dir__ = lazy_names(__name__, _HOMES)
