@@ -149,6 +149,21 @@ def _is_number(value: object) -> bool:
     return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
+def words_footprint_radius(footprint_radius: float, word_footprint_radius: float | None) -> float:
+    """The utterances' footprint radius in metres: ``word_footprint_radius``, or
+    ``footprint_radius`` where that is None (:class:`DataPreparation`'s fields)."""
+    return footprint_radius if word_footprint_radius is None else word_footprint_radius
+
+
+def footprint_on(footprint_radius: float, words_radius: float) -> bool:
+    """Whether an observation footprint is on: the images' (and further modalities')
+    ``footprint_radius`` or the utterances' resolved ``words_radius`` (metres) other than 0.
+    The one test of :attr:`DataPreparation.has_footprint` and of
+    :func:`~spcopyro.data.counts.cell_counts`, whose radii are not validated: a negative one
+    goes on to the footprint's own error, as before (not off)."""
+    return bool(footprint_radius) or bool(words_radius)
+
+
 @dataclass(frozen=True)
 class SpCoConfig:
     """Hyperparameters of SpCoMapping (paper eqs. 1-10) and the switches selecting a variant.
@@ -322,7 +337,8 @@ class DataPreparation:
             disc inside a concept; docs/real_houses.md, room1ldk5).
         footprint_kernel: ``"uniform"`` or ``"gaussian"`` (sigma = radius / 2) weights.
         footprint_fov: degrees: an image informs only the cells within +-fov/2 of its yaw
-            (needs the data's image yaw); None: the whole disc. Words always use the disc.
+            (needs the data's image yaw); None: the whole disc. Read only where
+            ``footprint_radius`` > 0: words always use the disc.
         word_scaling: s > 0: each utterance's word counts (or tf-idf weights) times s, the
             words' weight against the images and the MRF (1: the paper). A tempered likelihood,
             as ``feature_scaling`` is for images (``floor100`` counts a histogram as 100 draws).
@@ -385,8 +401,14 @@ class DataPreparation:
     def words_radius(self) -> float:
         """The utterances' footprint radius in metres: ``word_footprint_radius``, or
         ``footprint_radius`` where that is None."""
-        words = self.word_footprint_radius
-        return self.footprint_radius if words is None else words
+        return words_footprint_radius(self.footprint_radius, self.word_footprint_radius)
+
+    @property
+    def has_footprint(self) -> bool:
+        """Whether any observation is spread over a footprint: ``footprint_radius`` > 0 or the
+        utterances' :attr:`words_radius` > 0 (the kernel is read then; the field of view only
+        where ``footprint_radius`` > 0: it applies to images)."""
+        return footprint_on(self.footprint_radius, self.words_radius)
 
     def to_json(self) -> dict[str, object]:
         """The fields as JSON values, as saved (config.json, checkpoints, records):

@@ -24,8 +24,12 @@ from spcopyro.cli.fit_summary import data_line
 from spcopyro.cli.main import main
 from spcopyro.config import DataPreparation, preset
 from spcopyro.data import cell_counts, prepared_cell_counts
-from spcopyro.fit.refine import refined_settings
+from spcopyro.fit.gibbs_chains import preparation_record
+from spcopyro.fit.refine import UNUSED, refined_settings, replaced_preparation
+from spcopyro.fit.setting_warnings import preparation_warnings
+from spcopyro.gibbs.checkpoint import differences
 from spcopyro.results.result import SpCoResult
+from spcopyro.synthetic import HouseSpec, write_synthetic
 
 
 @pytest.fixture
@@ -161,3 +165,68 @@ def test_the_refinement_counts_words_at_their_cell():
     assert replaced_options(at_cell, refined_settings(at_cell, 100, 2500).data) == {}
     given = argparse.Namespace(word_footprint=0.0)
     assert prepares_data(given)  # a preparation of its own: no refinement by default
+
+
+# -- any footprint on: the words' own reads the kernel, the images' alone the field of view --------
+
+
+WORDS_ONLY = {"footprint_radius": 0.0, "word_footprint_radius": 0.5}
+
+
+def test_a_words_only_footprint_keeps_the_kernel_in_the_checkpoint_record():
+    """The words' footprint reads footprint_kernel, so a checkpoint records it (it dropped it
+    with footprint_radius 0, and a resume with another --footprint-kernel went unnoticed)."""
+    saved = preparation_record(preset("auto", **WORDS_ONLY))
+    here = preparation_record(preset("auto", **WORDS_ONLY, footprint_kernel="gaussian"))
+    assert saved["footprint_kernel"] == "uniform" and saved["word_footprint_radius"] == 0.5
+    assert differences({"p": saved}, {"p": here}) == [
+        "p.footprint_kernel: 'uniform' in the checkpoint, 'gaussian' here"
+    ]
+    # no footprint at all: the record of before the footprint existed, as ever
+    assert not {"footprint_radius", "footprint_kernel", "footprint_fov"} & set(
+        preparation_record(preset("auto", footprint_kernel="gaussian"))
+    )
+
+
+def test_the_refinement_replaces_a_kernel_a_words_only_footprint_read():
+    first = preset("auto", **WORDS_ONLY, footprint_kernel="gaussian", footprint_fov=90.0)
+    replaced = replaced_preparation(first, refined_settings(first, 100, 2500).data)
+    assert replaced == {
+        "footprint_kernel": {"given": "gaussian", "refinement": UNUSED},
+        "word_footprint_radius": {"given": 0.5, "refinement": 0.0},
+    }  # the fov did nothing (no images' footprint): not replaced
+
+
+def test_a_fov_with_a_words_only_footprint_warns_instead_of_needing_yaw(rng, tmp_path, capsys):
+    """--footprint-fov applies to images only: with --footprint 0 and a words' footprint it does
+    nothing, on data without yaw too (it raised 'footprint_fov needs each image's yaw')."""
+    grid = tiny_grid(ROWS)
+    obs = observations(grid, rng, yaw=False)
+    counts = _prepared(grid, obs, **WORDS_ONLY, footprint_fov=90.0)
+    plain = _prepared(grid, obs, **WORDS_ONLY)
+    for name in ("cells", "image_counts", "word_counts"):
+        np.testing.assert_array_equal(getattr(counts, name), getattr(plain, name))
+    (fov,) = preparation_warnings(DataPreparation(**WORDS_ONLY, footprint_fov=90.0))
+    assert fov.startswith("footprint_fov=90 (fit's --footprint-fov 90) does nothing without")
+    assert "each image counts in its own cell only" in fov
+    assert preparation_warnings(DataPreparation(**WORDS_ONLY, footprint_kernel="gaussian")) == []
+    room = write_synthetic(
+        tmp_path / "data", seed=1, spec=HouseSpec(height=30, width=40, num_rooms=2)
+    )
+    for trial in [*room.glob("pose_*.csv"), *room.glob("word_*.csv")]:
+        trial.unlink()  # no pose files: no image yaw
+    argv = ["fit", str(room), "--sweeps", "2", "--concepts", "6", "--footprint", "0",
+            "--word-footprint", "0.5", "--footprint-fov", "90", "--refine", "never",
+            "--no-figures", "--out", str(tmp_path / "out")]  # fmt: skip
+    assert main(argv) == 0
+    assert "warning: footprint_fov=90 (fit's --footprint-fov 90) does nothing" in (
+        capsys.readouterr().err
+    )
+
+
+def test_the_data_line_leaves_out_a_fov_the_images_do_not_read():
+    line = data_line(DataPreparation(**WORDS_ONLY, footprint_fov=90.0))
+    assert "footprint 0 m (uniform, words 0.5 m)" in line and "deg" not in line
+    assert "(uniform, images 90 deg wide)" in data_line(
+        DataPreparation(footprint_radius=0.5, footprint_fov=90.0)
+    )

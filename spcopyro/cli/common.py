@@ -228,7 +228,7 @@ def _placement_lines(
     footprints reach too, given a footprint radius) and where the observations were placed."""
     observed = f"{len(counts.cells)} (where observations were placed)"
     prep = preparation
-    if prep is not None and (prep.footprint_radius > 0 or prep.words_radius > 0):
+    if prep is not None and prep.has_footprint:
         spread = prepared_cell_counts(house.grid, house.observations, prep, source=house.source,
                                       warn=False)  # fmt: skip
         radius, words = prep.footprint_radius, prep.words_radius

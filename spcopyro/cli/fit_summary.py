@@ -80,8 +80,10 @@ def data_line(
         parts.append("word weighting tfidf")
     if p.word_scaling != 1.0:
         parts.append(f"word scaling {_number(p.word_scaling)}")
-    if p.footprint_radius > 0 or p.words_radius > 0:
-        fov = "" if p.footprint_fov is None else f", images {_number(p.footprint_fov)} deg wide"
+    if p.has_footprint:
+        fov = ""
+        if p.footprint_fov is not None and p.footprint_radius:  # read by the images' only
+            fov = f", images {_number(p.footprint_fov)} deg wide"
         if p.words_radius != p.footprint_radius:  # --word-footprint: the words' own
             fov += f", words {_number(p.words_radius)} m" if p.words_radius else ", words at cell"
         parts.append(f"footprint {_number(p.footprint_radius)} m ({p.footprint_kernel}{fov})")

@@ -33,6 +33,8 @@ from spcopyro.config import (
     FeatureScaling,
     FootprintKernel,
     WordWeightingSetting,
+    footprint_on,
+    words_footprint_radius,
 )
 from spcopyro.data.footprint import (
     SpreadSources,
@@ -393,12 +395,12 @@ def cell_counts(
     observation o is spread over the free cells within that geodesic distance of its cell with
     weights w_oc summing to 1 (``footprint_kernel``; ``footprint_fov`` degrees around
     ``obs.image_yaw`` for images), so each sum above becomes sum_o w_oc counts_o and the observed
-    cells are every cell with a positive weight. ``footprint_radius = 0`` leaves the counts exactly
-    as without it; ``word_footprint_radius``, if not None, is the utterances' own (0: their cell).
-    ``warn=False`` leaves out the warnings about observations left out
-    (:func:`say_placement_warnings`: a caller that counts the same observations twice says them
-    once, a fit after its placement check). ``word_scaling`` s multiplies every utterance's word
-    counts (or tf-idf weights) by s before they are placed (``DataPreparation.word_scaling``).
+    cells are every cell with a positive weight; ``word_footprint_radius``, if not None, is the
+    utterances' own (0: their cell; the fov is read only where ``footprint_radius`` > 0). Both 0
+    leave the counts as without them. ``warn=False``: no warnings about observations left out
+    (:func:`say_placement_warnings`: a caller counting the same observations twice says them once,
+    a fit after its placement check). ``word_scaling`` s multiplies every utterance's word counts
+    (or tf-idf weights) by s before they are placed (``DataPreparation.word_scaling``).
 
     Counts are checked by :func:`check_count_totals` (finite, totals at most
     :data:`MAX_COUNT_TOTAL`): ``source``, the house folder the observations were read from
@@ -433,8 +435,8 @@ def cell_counts(
     word_cell, word_snapped, word_unplaced = place_observations(grid, obs.word_xy, snap_distance)
     further = [place_observations(grid, m.positions, snap_distance) for m in obs.modalities]
 
-    words_radius = footprint_radius if word_footprint_radius is None else word_footprint_radius
-    if footprint_radius or words_radius:
+    words_radius = words_footprint_radius(footprint_radius, word_footprint_radius)
+    if footprint_on(footprint_radius, words_radius):
         plain = cell_counts(grid, obs, feature_scaling=feature_scaling,
                             word_weighting=word_weighting, snap_distance=snap_distance,
                             vocabulary=vocab, source=source, word_scaling=word_scaling,
@@ -547,15 +549,12 @@ def _with_footprint(
     """``plain`` (the counts without footprint: placement report, vocabulary) with every
     observation spread over its footprint (:func:`~spcopyro.data.footprint.footprint_weights`):
     ``radii`` (metres) the images' and further modalities', then the utterances' (0: own cell).
-
     ``features`` [T, K] and ``words`` [U, V] are the scaled / weighted rows per observation,
-    ``placed`` the free index of each image, utterance and further observation (-1: unplaced).
-    """
+    ``placed`` the free index of each image, utterance and further observation (-1: unplaced)."""
+    fov = fov if radii[0] else None  # images at their own cell (words' footprint only): unread
     if fov is not None and obs.num_images and obs.image_yaw is None:
-        raise ValueError(
-            "footprint_fov needs each image's yaw, and these observations hold none "
-            "(pose_K.csv files give it); leave footprint_fov unset to use the whole disc"
-        )
+        raise ValueError("footprint_fov needs each image's yaw (pose_K.csv gives it); these "
+                         "observations hold none: leave it unset for the whole disc")  # fmt: skip
     image_cell, word_cell, further_cells = placed
     bar = _footprint_bar(grid, max(radii), (image_cell, word_cell, *further_cells))
     graph = free_cell_graph(grid)

@@ -148,7 +148,7 @@ def preparation_record(settings: SpCoSettings) -> dict[str, object]:
     """The data preparation as a checkpoint records it: the footprint fields only when the
     footprint is on, so checkpoints made before it existed still resume."""
     record = settings.data.to_json()  # word_footprint_radius only where set
-    if not settings.data.footprint_radius:
+    if not settings.data.has_footprint:  # the words' own footprint reads the kernel too
         for name in ("footprint_radius", "footprint_kernel", "footprint_fov"):
             record.pop(name)
     return record

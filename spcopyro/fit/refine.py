@@ -161,8 +161,9 @@ def replaced_preparation(
     (``settings.chosen``: :func:`~spcopyro.config.preset`'s overrides, as the command line
     passes its options, even one equal to the preset's value) or differing from the preset
     ``settings`` came from (``settings.preset``; every field of settings made without one). A
-    footprint's kernel or field of view counts only where the first stage had a footprint (one
-    given without it did nothing there, and is not replaced); the refinement's is
+    footprint's kernel or field of view counts only where the first stage had a footprint that
+    reads it (any footprint, the words' own too, for the kernel; the images' for the field of
+    view): one given without it did nothing there, and is not replaced; the refinement's is
     :data:`UNUSED` where it has none. The words' own radius counts only where given (None is
     ``footprint_radius``'s), against the refinement's words at their cell (0). Empty for a
     preset's own preparation (the default fit:
@@ -180,13 +181,19 @@ def replaced_preparation(
         if own is not None and field not in settings.chosen and given == getattr(own, field):
             continue  # the preset's value, not the caller's
         if field in ("footprint_kernel", "footprint_fov"):
-            if not first.footprint_radius:
+            if not _reads(first, field):
                 continue  # no footprint in the first stage either: it did nothing there
-            if not refined.footprint_radius:
+            if not _reads(refined, field):
                 used = UNUSED  # kept in the refinement's preparation, doing nothing there
         if given != used:
             replaced[field] = {"given": given, "refinement": used}
     return replaced
+
+
+def _reads(data: DataPreparation, field: str) -> bool:
+    """Whether ``data``'s counts read its ``footprint_kernel`` (any footprint, the words' own
+    too) or ``footprint_fov`` (the images' footprint only: words always use the disc)."""
+    return data.has_footprint if field == "footprint_kernel" else bool(data.footprint_radius)
 
 
 def _replaced_warning(replaced: dict[str, dict[str, object]]) -> str:

@@ -98,23 +98,26 @@ def config_warnings(config: SpCoConfig, sampled: bool = True) -> list[str]:
 
 def preparation_warnings(data: DataPreparation) -> list[str]:
     """Warnings for data preparation settings that do nothing (empty if none): a footprint
-    kernel other than the default ``"uniform"``, or a field of view, with ``footprint_radius``
-    0, where every observation counts in its own cell only and neither is read (the fit's
-    counts are the paper's, as if they were not given)."""
-    if data.footprint_radius or data.words_radius:  # the words' footprint reads the kernel
-        return []
+    kernel other than the default ``"uniform"`` without any footprint
+    (:attr:`~spcopyro.config.DataPreparation.has_footprint`: the words' own reads it too), or a
+    field of view with ``footprint_radius`` 0 (it applies to images only, words always using
+    the disc), where the observations it would weight count in their own cell only and it is
+    not read (the fit's counts are as if it were not given)."""
     given = []
-    if data.footprint_kernel != "uniform":
+    if data.footprint_kernel != "uniform" and not data.has_footprint:
         given.append(setting(f"footprint_kernel={data.footprint_kernel!r}",
                              f"--footprint-kernel {data.footprint_kernel}"))  # fmt: skip
-    if data.footprint_fov is not None:
+    if data.footprint_fov is not None and not data.footprint_radius:
         given.append(setting(f"footprint_fov={data.footprint_fov:g}",
                              f"--footprint-fov {data.footprint_fov:g}"))  # fmt: skip
     if not given:
         return []
     it = "it takes" if len(given) == 1 else "they take"
+    where = "each observation counts in its own cell only"
+    if data.has_footprint:  # the words' own footprint, which has no field of view
+        where = "each image counts in its own cell only (the words' own footprint is a disc)"
     return [
         f"{' and '.join(given)} {'does' if len(given) == 1 else 'do'} nothing without a "
-        "footprint: footprint_radius is 0, so each observation counts in its own cell only; "
+        f"footprint: footprint_radius is 0, so {where}; "
         f"{it} effect with {setting('footprint_radius=R', '--footprint R')}, R metres > 0"
     ]
