@@ -410,6 +410,18 @@ class DataPreparation:
         where ``footprint_radius`` > 0: it applies to images)."""
         return footprint_on(self.footprint_radius, self.words_radius)
 
+    def reads(self, field: str) -> bool:
+        """Whether the counts read the footprint setting ``field``: ``"footprint_kernel"``
+        where any footprint is on (:attr:`has_footprint`, the words' own too),
+        ``"footprint_fov"`` only where ``footprint_radius`` > 0 (it applies to images: words
+        always use the disc). The one rule of the warnings, records and summaries of a setting
+        given where it does nothing."""
+        if field == "footprint_kernel":
+            return self.has_footprint
+        if field == "footprint_fov":
+            return bool(self.footprint_radius)
+        raise ValueError(f"reads: {field!r} is not 'footprint_kernel' or 'footprint_fov'")
+
     def to_json(self) -> dict[str, object]:
         """The fields as JSON values, as saved (config.json, checkpoints, records):
         ``word_footprint_radius`` only where set, so a preparation without it saves as before

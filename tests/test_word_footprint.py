@@ -188,6 +188,34 @@ def test_a_words_only_footprint_keeps_the_kernel_in_the_checkpoint_record():
     )
 
 
+def test_a_words_only_footprint_leaves_the_unread_fov_out_of_the_checkpoint_record():
+    """--footprint-fov applies to the images' footprint only: with a words-only footprint it does
+    nothing, so the record leaves it out and a resume changing only it is not refused (the
+    record kept it beside the kernel, and the resume was refused over a setting doing nothing)."""
+    saved = preparation_record(preset("auto", **WORDS_ONLY))
+    here = preparation_record(preset("auto", **WORDS_ONLY, footprint_fov=90.0))
+    assert "footprint_fov" not in saved and "footprint_fov" not in here
+    assert differences({"p": saved}, {"p": here}) == []
+    # the images' footprint reads it: recorded, and a change named
+    images = {"footprint_radius": 0.5, "word_footprint_radius": 0.0}
+    saved = preparation_record(preset("auto", **images))
+    here = preparation_record(preset("auto", **images, footprint_fov=90.0))
+    assert differences({"p": saved}, {"p": here}) == [
+        "p.footprint_fov: None in the checkpoint, 90.0 here"
+    ]
+
+
+def test_reads_is_the_per_field_rule():
+    for data, kernel, fov in [
+        (DataPreparation(), False, False),
+        (DataPreparation(**WORDS_ONLY), True, False),
+        (DataPreparation(footprint_radius=0.5, word_footprint_radius=0.0), True, True),
+    ]:
+        assert (data.reads("footprint_kernel"), data.reads("footprint_fov")) == (kernel, fov)
+    with pytest.raises(ValueError, match="'cell_size' is not"):
+        DataPreparation().reads("cell_size")
+
+
 def test_the_refinement_replaces_a_kernel_a_words_only_footprint_read():
     first = preset("auto", **WORDS_ONLY, footprint_kernel="gaussian", footprint_fov=90.0)
     replaced = replaced_preparation(first, refined_settings(first, 100, 2500).data)

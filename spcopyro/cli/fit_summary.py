@@ -82,7 +82,7 @@ def data_line(
         parts.append(f"word scaling {_number(p.word_scaling)}")
     if p.has_footprint:
         fov = ""
-        if p.footprint_fov is not None and p.footprint_radius:  # read by the images' only
+        if p.footprint_fov is not None and p.reads("footprint_fov"):  # images' only
             fov = f", images {_number(p.footprint_fov)} deg wide"
         if p.words_radius != p.footprint_radius:  # --word-footprint: the words' own
             fov += f", words {_number(p.words_radius)} m" if p.words_radius else ", words at cell"

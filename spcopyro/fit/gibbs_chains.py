@@ -145,11 +145,17 @@ def gibbs_outputs(
 
 
 def preparation_record(settings: SpCoSettings) -> dict[str, object]:
-    """The data preparation as a checkpoint records it: the footprint fields only when the
-    footprint is on, so checkpoints made before it existed still resume."""
-    record = settings.data.to_json()  # word_footprint_radius only where set
-    if not settings.data.has_footprint:  # the words' own footprint reads the kernel too
-        for name in ("footprint_radius", "footprint_kernel", "footprint_fov"):
+    """The data preparation as a checkpoint records it: the footprint fields only where they
+    are read, so checkpoints made before they existed still resume and a resume changing one
+    that does nothing is not refused: ``footprint_radius`` and ``footprint_kernel`` where any
+    footprint is on (the words' own too), ``footprint_fov`` where the images' is
+    (:meth:`~spcopyro.config.DataPreparation.reads`)."""
+    data = settings.data
+    record = data.to_json()  # word_footprint_radius only where set
+    if not data.has_footprint:
+        record.pop("footprint_radius")
+    for name in ("footprint_kernel", "footprint_fov"):
+        if not data.reads(name):
             record.pop(name)
     return record
 

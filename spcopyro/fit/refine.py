@@ -181,19 +181,13 @@ def replaced_preparation(
         if own is not None and field not in settings.chosen and given == getattr(own, field):
             continue  # the preset's value, not the caller's
         if field in ("footprint_kernel", "footprint_fov"):
-            if not _reads(first, field):
+            if not first.reads(field):
                 continue  # no footprint in the first stage either: it did nothing there
-            if not _reads(refined, field):
+            if not refined.reads(field):
                 used = UNUSED  # kept in the refinement's preparation, doing nothing there
         if given != used:
             replaced[field] = {"given": given, "refinement": used}
     return replaced
-
-
-def _reads(data: DataPreparation, field: str) -> bool:
-    """Whether ``data``'s counts read its ``footprint_kernel`` (any footprint, the words' own
-    too) or ``footprint_fov`` (the images' footprint only: words always use the disc)."""
-    return data.has_footprint if field == "footprint_kernel" else bool(data.footprint_radius)
 
 
 def _replaced_warning(replaced: dict[str, dict[str, object]]) -> str:

@@ -104,10 +104,10 @@ def preparation_warnings(data: DataPreparation) -> list[str]:
     the disc), where the observations it would weight count in their own cell only and it is
     not read (the fit's counts are as if it were not given)."""
     given = []
-    if data.footprint_kernel != "uniform" and not data.has_footprint:
+    if data.footprint_kernel != "uniform" and not data.reads("footprint_kernel"):
         given.append(setting(f"footprint_kernel={data.footprint_kernel!r}",
                              f"--footprint-kernel {data.footprint_kernel}"))  # fmt: skip
-    if data.footprint_fov is not None and not data.footprint_radius:
+    if data.footprint_fov is not None and not data.reads("footprint_fov"):
         given.append(setting(f"footprint_fov={data.footprint_fov:g}",
                              f"--footprint-fov {data.footprint_fov:g}"))  # fmt: skip
     if not given:
