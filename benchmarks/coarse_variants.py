@@ -78,6 +78,7 @@ VARIANTS: dict[str, tuple[str, dict[str, object]]] = {
     "words x5": (BASE, {"word_scaling": 5.0}),
     "gamma 3.5": (BASE, {"gamma": 3.5}),
     "alpha 1e5": (BASE, {"alpha": 1e5}),
+    "words-at-cell": (BASE, {"word_footprint_radius": 0.0}),
 }
 """Name -> (preset, overrides), in the order run: ``coarse`` and ``paper-dp`` first (the
 references at the same sweeps), then the variants by the prior that they could raise held-out
