@@ -455,3 +455,50 @@ def test_a_word_heard_as_rarely_as_the_rarest_is_listed(tmp_path, capsys):
     old = SpCoResult.load(saved)
     assert old.word_counts is None
     assert [w for w, _ in shown_top_words(old, 0, 3)] == ["kitchen"]
+
+
+def test_a_variational_concept_lists_only_the_words_heard_there(tmp_path, capsys):
+    """The default house's svi fit listed "door 0.86, entrance 0.01, bathroom 0.01" for a
+    concept of 16 cells where only 'door' was heard: a variational E_q[w] has no row minimum
+    shared by the unheard words (no :func:`prior_share`), so the floor rule kept them. Where
+    the result keeps its counts, the words heard decide: fit's listing, the legend, the map's
+    labels and `where` list 'kitchen' alone; concepts.json's top words are unchanged."""
+    from spcopyro.cli.main import main
+    from spcopyro.figures.map_pieces import concept_handles
+
+    counts = np.array([[5.0, 0.0, 0.0], [0.0, 4.0, 2.0], [0.0, 0.0, 0.0]])  # [L, V]
+    w = np.array([[0.80, 0.15, 0.05], [0.1, 0.6, 0.3], [0.7, 0.16, 0.14]])  # [L, V], no ties
+    base = two_rooms()
+    result = dataclasses.replace(
+        base,
+        emissions=(base.emissions[0], EmissionTable("words", WORDS, w)),
+        concept_totals=np.array([[3.0, 3.0, 5.0], [2.0, 2.0, 6.0], [0.0, 0.0, 0.0]]),
+        word_counts=counts,
+        inference={},  # a variational fit's: words as the method estimates them
+    )
+    assert [w for w, _ in result.top_words(0, 3)] == ["kitchen", "bed", "sofa"]
+    assert [w for w, _ in shown_top_words(result, 0, 3)] == ["kitchen"]
+    assert [w for w, _ in shown_top_words(result, 1, 3)] == ["bed", "sofa"]
+    print_concepts(result)
+    lines = capsys.readouterr().out.splitlines()
+    (left,) = [line for line in lines if "concept   0:" in line]
+    assert left.split(" | ")[0].endswith("5 words  kitchen 0.80"), left
+    assert region_text(result, 0).splitlines()[1:] == ["kitchen 0.80 x1.8"]
+    labels = [h.get_label() for h in concept_handles(result, np.zeros((3, 3), dtype=np.uint8))]
+    assert labels[0].startswith("[0] 150 cells, 5 words heard: kitchen 0.80\n"), labels[0]
+    assert main(["where", str(result.save(tmp_path / "fit")), "kitchen"]) == 0
+    out = capsys.readouterr().out
+    assert "its words: kitchen (0.80);" in out, out
+
+
+def test_a_one_cell_concept_is_singular_in_the_legend():
+    """The semantic map's legend said "[89] 1 cells, 0.1 words heard: ..." (default house,
+    svi): a one-cell concept where a word was heard is no speck and gets its own entry."""
+    from spcopyro.figures.map_pieces import concept_handles
+
+    totals = np.array([[3.0, 3.0, 5.0], [2.0, 2.0, 4.0], [1.0, 1.0, 1.0]])  # concept 2: 1 cell
+    result = dataclasses.replace(two_rooms(), concept_totals=totals)
+    labels = [h.get_label() for h in concept_handles(result, np.zeros((3, 3), dtype=np.uint8))]
+    assert labels[0].startswith("[0] 150 cells, 5 words heard: "), labels
+    (one,) = [label for label in labels if label.startswith("[2] ")]
+    assert one.startswith("[2] 1 cell, 1 word heard: kitchen 0.70"), one

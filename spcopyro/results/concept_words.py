@@ -139,13 +139,17 @@ def shown_words(
     the place), and, given the concept's whole ``row`` ``[V]``, a word at :func:`prior_share`:
     never heard there ("bathroom 0.57, bathtub 0.29, restroom 0.01", restroom one of 15 words
     at the prior's 0.1 / 10.7, first of them by tie order only). ``heard``: the words heard in
-    the concept, where the result knows them (:func:`heard_words`): a word among them is heard
-    even at the row's minimum (every word heard, two of them as often as each other)."""
+    the concept, where the result knows them (:func:`heard_words`): then they decide, a word
+    among them kept even at the row's minimum (every word heard, two of them as often as each
+    other), and a word not among them left out even above it (a variational method's E_q[w]
+    has no floor: the default house's svi fit listed "door 0.86, entrance 0.01, bathroom 0.01"
+    for a concept where only 'door' was heard)."""
     floor = None if row is None else prior_share(row)
 
     def unheard(word: str, p: float) -> bool:
-        at_floor = floor is not None and round(p, RANK_DECIMALS) == floor
-        return at_floor and (heard is None or word not in heard)
+        if heard is not None:  # the counts say it: also where no floor does (a variational q)
+            return word not in heard
+        return floor is not None and round(p, RANK_DECIMALS) == floor
 
     return [(w, p) for w, p in top if round(p, 2) > 0 and not unheard(w, p)] or list(top[:1])
 
