@@ -220,7 +220,7 @@ def concept_handles(
         heard_text = "" if heard is None else format_words_heard(heard)
         noun = "word" if heard_text == "1" else "words"  # not "1 words heard"
         count = "" if heard is None or heard == 0 else f", {heard_text} {noun} heard"
-        size = f"{cells} {'cell' if cells == 1 else 'cells'}"  # not "1 cells", as fit prints
+        size = cells_range([cells])  # "1 cell", not "1 cells", as fit prints
         handles.append(Patch(color=colours[c] / 255.0, label=f"[{c}] {size}{count}: {words}"))
     summaries = []  # (largest concept, entry): the two summary lines, larger concepts first
     if len(used) > limit:
