@@ -32,6 +32,7 @@ from spcopyro.results.concept_words import (
     NO_WORDS,
     distinctive_items,
     format_concept_words,
+    heard_words,
     lift,
     shown_top_words,
     shown_words,
@@ -502,3 +503,42 @@ def test_a_one_cell_concept_is_singular_in_the_legend():
     assert labels[0].startswith("[0] 150 cells, 5 words heard: "), labels
     (one,) = [label for label in labels if label.startswith("[2] ")]
     assert one.startswith("[2] 1 cell, 1 word heard: kitchen 0.70"), one
+
+
+def test_a_variational_concept_ranks_its_heard_words_before_cutting(capsys):
+    """A variational E_q[w] can rank a heard word below unheard ones: cutting to the top ``n``
+    first listed fewer than ``n`` heard words, and where none of the top ``n`` was heard it
+    printed an unheard one (the first, by the "first always" fallback). The ``n`` shown are
+    the most probable heard words; a ``top`` passed in does not narrow them. A posterior-mean
+    row (unheard words at its floor, Gibbs) lists as the cut-first rule did."""
+    counts = np.array([[0.0, 0.0, 2.0], [3.0, 4.0, 0.0], [1.0, 0.0, 0.0]])  # [L, V]
+    w = np.array([[0.6, 0.25, 0.15], [0.1, 0.6, 0.3], [0.7, 0.16, 0.14]])  # [L, V], no floor
+    base = two_rooms()
+    result = dataclasses.replace(
+        base,
+        emissions=(base.emissions[0], EmissionTable("words", WORDS, w)),
+        concept_totals=np.array([[3.0, 3.0, 2.0], [2.0, 2.0, 7.0], [1.0, 1.0, 1.0]]),
+        word_counts=counts,
+        inference={},
+    )
+    assert [w for w, _ in shown_top_words(result, 0, 1)] == ["sofa"]  # not kitchen, unheard
+    assert [w for w, _ in shown_top_words(result, 1, 2)] == ["bed", "kitchen"]
+    assert [w for w, _ in shown_top_words(result, 1, 2, top=result.top_words(1, 2))] == [
+        "bed",
+        "kitchen",
+    ]
+    assert shown_top_words(result, 1, 0) == []
+    print_concepts(result)  # its top words come from concepts(): the heard ones still listed
+    lines = capsys.readouterr().out.splitlines()
+    (left,) = [line for line in lines if "concept   0:" in line]
+    assert left.split(" | ")[0].endswith("2 words  sofa 0.15"), left
+    assert region_text(result, 0).splitlines()[1].startswith("sofa 0.15"), region_text(result, 0)
+    floor = np.array([[0.5, 0.25, 0.25], [0.1, 0.1, 0.8], [0.6, 0.2, 0.2]])  # [L, V], Gibbs
+    heard = np.array([[4.0, 1.0, 0.0], [0.0, 0.0, 5.0], [1.0, 0.0, 0.0]])  # [L, V]
+    words = EmissionTable("words", WORDS, floor)
+    gibbs = dataclasses.replace(result, emissions=(base.emissions[0], words), word_counts=heard)
+    for concept in range(3):
+        for n in range(4):
+            row, known = floor[concept], heard_words(gibbs, concept)  # [V]
+            cut_first = shown_words(gibbs.top_words(concept, n), row, known)
+            assert shown_top_words(gibbs, concept, n) == cut_first, (concept, n)

@@ -171,10 +171,19 @@ def shown_top_words(
     """:func:`shown_words` of concept ``concept``'s ``n`` most probable words of ``result`` (an
     :class:`~spcopyro.results.result.SpCoResult`), given its row ``result.w[concept]`` ``[V]``
     and its :func:`heard_words`: the words fit's listing, the map's legend and labels and
-    ``where`` print. ``top``: those words where the caller has them already (a concept's
-    ``top_words`` in ``result.concepts()``), used instead of ``result.top_words(concept, n)``."""
+    ``where`` print. Where the result knows the words heard, the ``n`` are the most probable
+    of those (ranked among them first, cut to ``n`` after): a variational E_q[w] can rank a
+    heard word below unheard ones, and cutting first listed fewer than ``n``, or an unheard
+    word alone where none of the top ``n`` was heard; a posterior mean (Gibbs) ranks its heard
+    words first, so it lists the same. ``top``: the ``n`` most probable words where the caller
+    has them already (a concept's ``top_words`` in ``result.concepts()``), used instead of
+    ``result.top_words(concept, n)`` only where the result does not know the words heard."""
+    row, heard = result.w[concept], heard_words(result, concept)  # [V]
+    if heard:  # rank among the heard words, then cut (an empty set: as below, never printed)
+        everyword = result.top_words(concept, len(result.vocabulary))  # [(word, p)] * V
+        return shown_words([(w, p) for w, p in everyword if w in heard], row, heard)[:n]
     top = result.top_words(concept, n) if top is None else top
-    return shown_words(top, result.w[concept], heard_words(result, concept))
+    return shown_words(top, row, heard)
 
 
 def prior_share(row: np.ndarray) -> float | None:
