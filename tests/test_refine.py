@@ -346,6 +346,26 @@ def test_refine_is_refused_where_it_does_not_apply(home, tmp_path, capsys):
     assert "--refine auto refines a Gibbs fit" in capsys.readouterr().err
 
 
+def test_a_fit_the_preset_would_refine_but_cannot_says_why(home, tmp_path, capsys):
+    """Another --method or --update turned coarse's --refine auto to never silently: a cavi fit
+    (the 0.3 m model grid) beside a Gibbs fit refined to the map's cells, and nothing said why
+    their cells differ. The line sits where a Gibbs fit's decision does (before fitted)."""
+    argv = ["fit", str(home), "--no-figures", "--sweeps", "2"]
+    cavi = tmp_path / "cavi"
+    assert main([*argv, "--out", str(cavi), "--method", "cavi"]) == 0
+    printed = capsys.readouterr().out
+    line = ("not refined      --refine refines --method gibbs fits only: --method cavi keeps the "
+            "0.3 m model grid\n")  # fmt: skip
+    assert line in printed and printed.index(line) < printed.index("\nfitted ")
+    assert "refining " not in printed
+    assert main([*argv, "--out", str(tmp_path / "u"), "--update", str(cavi)]) == 0
+    assert ("not refined      --refine refines a new fit only: --update continues the saved fit "
+            "on the 0.3 m model grid\n") in capsys.readouterr().out  # fmt: skip
+    for more in (["--refine", "never"], ["--preset", "paper-dp"]):  # nothing left unrefined
+        assert main([*argv, "--out", str(tmp_path / more[1]), "--method", "cavi", *more]) == 0
+        assert "not refined" not in capsys.readouterr().out
+
+
 def test_no_refinement_without_a_model_grid_coarser_than_the_map(home, tmp_path, capsys):
     """``--cell-size map --refine always`` was accepted and refitted the map's cells on the same
     cells with the refinement's preparation (``--refine auto`` too, where the images separated

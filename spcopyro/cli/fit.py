@@ -38,7 +38,7 @@ from spcopyro.cli.fit_options import (
     given_start,
     warm_start_kept,
 )
-from spcopyro.cli.fit_refine import check_refinable, refine
+from spcopyro.cli.fit_refine import check_refinable, refine, report_unrefined
 from spcopyro.cli.fit_resume import (
     check_resume_file,
     error_note,
@@ -369,5 +369,7 @@ def _fit(
             chain_results = refits
         kept = best_chain(refits)
         result = refits[kept]
+    else:  # a fit the preset would refine but another --method or --update cannot: why
+        report_unrefined(args, house)
     release_shared_footprints()  # the spread counts are no fit's any more
     return Fitted(result, chain_results, chains, kept, diagnostics, _clock() - start)

@@ -19,7 +19,7 @@ if TYPE_CHECKING:
 
 __all__ = [
     "LARGE_REFINEMENT_CELLS", "REFINED_AWAY", "check_refinable", "prepares_data", "refine",
-    "replaced_options",
+    "replaced_options", "report_unrefined",
 ]  # fmt: skip
 
 LARGE_REFINEMENT_CELLS = 100_000
@@ -56,6 +56,25 @@ def _map_cells_cause(args: argparse.Namespace, settings: SpCoSettings, on_map: H
     if coarsening_factor(on_map.grid.resolution, size) == 1:
         return f"{named} round{s} to the map's own {resolution} cells"
     return f"{named} leave{s} no free cell of the map (a warning above says so)"
+
+
+def report_unrefined(args: argparse.Namespace, model: House) -> None:
+    """Print why a fit the preset would refine (``--refine`` left unset) is not: another
+    ``--method`` or ``--update`` (``args.unrefined_by``, set by
+    :func:`spcopyro.cli.fit_settings.apply_preset_inference`), and the cells it stays on
+    (``model``'s grid), on the line where a Gibbs fit prints its decision (:func:`_decide`).
+    Nothing where nothing was kept from refining."""
+    by = getattr(args, "unrefined_by", None)
+    if by is None:
+        return
+    resolution = f"{model.grid.resolution:g} m"
+    cells = (f"the {resolution} model grid" if model.grid.coarsened_from is not None
+             else f"the map's own {resolution} cells")  # fmt: skip
+    if by == "--update":
+        print(f"not refined      --refine refines a new fit only: --update continues the saved "
+              f"fit on {cells}")  # fmt: skip
+    else:
+        print(f"not refined      --refine refines --method gibbs fits only: {by} keeps {cells}")
 
 
 def check_refinable(

@@ -52,7 +52,12 @@ def apply_preset_inference(args: argparse.Namespace) -> None:
             setattr(args, move, rate)
             args.preset_filled.add(move)
     refinable = args.method == "gibbs" and args.update is None
+    # the option that keeps a fit the preset would refine unrefined: fit says so where a Gibbs
+    # fit prints its decision (fit_refine.report_unrefined); a given preparation stays silent
+    args.unrefined_by = None
     if args.refine is None:  # a preparation given on the command line is kept, not refined away
+        if recommended.get("refine", "never") != "never" and not refinable:
+            args.unrefined_by = f"--method {args.method}" if args.method != "gibbs" else "--update"
         refinable = refinable and not prepares_data(args)
         args.refine = recommended.get("refine", "never") if refinable else "never"
     elif args.refine != "never" and not refinable:
