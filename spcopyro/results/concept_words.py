@@ -143,7 +143,9 @@ def shown_words(
     among them kept even at the row's minimum (every word heard, two of them as often as each
     other), and a word not among them left out even above it (a variational method's E_q[w]
     has no floor: the default house's svi fit listed "door 0.86, entrance 0.01, bathroom 0.01"
-    for a concept where only 'door' was heard)."""
+    for a concept where only 'door' was heard). Heard means heard under the point labels
+    (``word_counts``): for a variational fit a word whose q mass in the concept comes only from
+    cells labelled otherwise is not listed."""
     floor = None if row is None else prior_share(row)
 
     def unheard(word: str, p: float) -> bool:
