@@ -542,3 +542,28 @@ def test_a_variational_concept_ranks_its_heard_words_before_cutting(capsys):
             row, known = floor[concept], heard_words(gibbs, concept)  # [V]
             cut_first = shown_words(gibbs.top_words(concept, n), row, known)
             assert shown_top_words(gibbs, concept, n) == cut_first, (concept, n)
+
+
+def test_distinctive_words_are_words_heard_in_the_concept(capsys):
+    """A variational E_q[w] gives unheard words mass, so a concept's list read "bed 0.60 |
+    distinctive: sofa x1.7, bed x1.6" with 'sofa' never heard there (the word list had just
+    left it out). Where the result keeps its counts only the heard words are candidates; a
+    result saved without them ranks every word, as before."""
+    counts = np.array([[5.0, 0.0, 0.0], [0.0, 4.0, 0.0], [1.0, 0.0, 0.0]])  # [L, V]
+    w = np.array([[0.80, 0.15, 0.05], [0.1, 0.6, 0.3], [0.7, 0.16, 0.14]])  # [L, V]
+    base = two_rooms()
+    result = dataclasses.replace(
+        base,
+        emissions=(base.emissions[0], EmissionTable("words", WORDS, w)),
+        concept_totals=np.array([[3.0, 3.0, 5.0], [2.0, 2.0, 4.0], [1.0, 1.0, 1.0]]),
+        word_counts=counts,
+        inference={},
+    )
+    old = dataclasses.replace(result, word_counts=None)
+    assert [w for w, _, _ in old.distinctive_words(1, 3)] == ["sofa", "bed"]
+    assert [w for w, _, _ in result.distinctive_words(1, 3)] == ["bed"]
+    (one,) = [c for c in result.concepts() if c["concept"] == 1]
+    assert [w for w, _, _ in one["distinctive_words"]] == ["bed"]
+    print_concepts(result)
+    (line,) = [x for x in capsys.readouterr().out.splitlines() if "concept   1:" in x]
+    assert line.endswith("bed 0.60 | distinctive: bed x1.6"), line

@@ -118,13 +118,17 @@ def distinctive_items(
     items: Sequence[str],
     n: int = 3,
     min_lift: float = MIN_LIFT,
+    heard: Collection[str] | None = None,
 ) -> list[tuple[str, float, float]]:
     """The ``n`` items of largest lift above ``min_lift`` as ``(item, lift, probability)``,
-    largest lift first (ties: the more probable first); fewer when fewer items pass."""
+    largest lift first (ties: the more probable first); fewer when fewer items pass.
+    ``heard``: where known (:func:`heard_words`), only those items are candidates: a
+    variational E_q[w] gives an unheard word mass, and "door 0.86 | distinctive: entrance x1.3"
+    named a word the word list had just left out as not heard there."""
     row, lift_row = np.asarray(row), np.asarray(lift_row)  # [K], [K]
     order = ranked(lift_row, row)  # by lift, then probability, descending
     passes = np.round(lift_row, RANK_DECIMALS) > min_lift  # [K]
-    chosen = [k for k in order if passes[k]][:n]
+    chosen = [k for k in order if passes[k] and (heard is None or items[k] in heard)][:n]
     return [(items[k], float(lift_row[k]), float(row[k])) for k in chosen]
 
 

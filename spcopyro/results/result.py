@@ -32,7 +32,7 @@ from spcopyro.config import IMAGES, WORDS, DataPreparation, SpCoConfig
 from spcopyro.inference.protocol import InferenceOutput, Trace
 from spcopyro.maps import OccupancyGrid, load_map, save_map
 from spcopyro.results.concept_names import concept_names
-from spcopyro.results.concept_words import NO_WORDS, distinctive_items, lift, ranked
+from spcopyro.results.concept_words import NO_WORDS, distinctive_items, heard_words, lift, ranked
 from spcopyro.results.semantic_map import UnknownWordError, word_index, word_key
 from spcopyro.results.specks import with_speck_fields
 from spcopyro.results.where import (
@@ -299,12 +299,14 @@ class SpCoResult:
 
     def distinctive_words(self, concept: int, n: int = 3) -> list[tuple[str, float, float]]:
         """The ``n`` words of largest lift above 1 for a concept, as ``(word, lift, p)``
-        (:mod:`spcopyro.results.concept_words`); empty when no word was heard in its region."""
+        (:mod:`spcopyro.results.concept_words`), of the words heard in its region where the
+        result knows them (:func:`heard_words`); empty when no word was heard there."""
         concept, n = self._concept(concept), _count(n)
         if self.heard(concept) == 0:
             return []
-        table = self.emission(WORDS)
-        return distinctive_items(table.probabilities[concept], self.lift()[concept], table.items, n)
+        table, heard = self.emission(WORDS), heard_words(self, concept)  # heard: None if unknown
+        row = table.probabilities[concept]  # [V]
+        return distinctive_items(row, self.lift()[concept], table.items, n, heard=heard)
 
     def concepts(self, n_words: int = 3) -> list[dict[str, object]]:
         """Per concept in use: id, its region's ``name`` (the word ``where`` answers with it,
