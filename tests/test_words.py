@@ -544,6 +544,42 @@ def test_a_variational_concept_ranks_its_heard_words_before_cutting(capsys):
             assert shown_top_words(gibbs, concept, n) == cut_first, (concept, n)
 
 
+def test_a_concept_no_word_answers_is_named_by_its_most_probable_heard_word():
+    """Where no word's ``where`` answer is a concept, it was named by its top word; a variational
+    E_q[w] gives unheard words mass, so the speck (concept 2, one cell), where only 'bed' was
+    heard, was named "kitchen" (its w 0.70, never heard there) while its word list read 'bed'.
+    Its name is now its most probable heard word (:func:`shown_top_words`); a result without
+    counts, whose counts hold none for it, or whose fit did not model its words, is named by its
+    top word as before, and one where no word was heard ``concept 2``."""
+    from spcopyro.results.concept_names import answered_words, concept_name
+
+    counts = np.array([[5.0, 0.0, 0.0], [0.0, 4.0, 2.0], [0.0, 1.0, 0.0]])  # [L, V]
+    w = np.array([[0.6, 0.2, 0.2], [0.1, 0.6, 0.3], [0.7, 0.16, 0.14]])  # [L, V], no floor
+    totals = np.array([[3.0, 3.0, 5.0], [2.0, 2.0, 6.0], [1.0, 1.0, 1.0]])  # [L, 1 + M]
+    base = two_rooms()
+    result = dataclasses.replace(
+        base,
+        emissions=(base.emissions[0], EmissionTable("words", WORDS, w)),
+        concept_totals=totals,
+        word_counts=counts,
+        inference={},
+    )
+    assert 2 not in answered_words(result, heard_only=True)  # kitchen: 0's, bed and sofa: 1's
+    assert result.top_words(2, 1)[0][0] == "kitchen"
+    assert concept_name(result, 2) == "bed"
+    assert {c["concept"]: c["name"] for c in result.concepts()} == {0: "kitchen", 1: "bed",
+                                                                   2: "bed"}  # fmt: skip
+    assert region_text(result, 2, largest=False) == "[2] bed"
+    unknown = dataclasses.replace(result, word_counts=None)  # a fit saved before the counts
+    assert concept_name(unknown, 2) == "kitchen"
+    none_counted = dataclasses.replace(result, word_counts=counts * [[1], [1], [0]])
+    assert concept_name(none_counted, 2) == "kitchen"
+    unmodelled = dataclasses.replace(result, config=result.config.replace(use_words=False))
+    assert concept_name(unmodelled, 2) == "kitchen"  # w the prior's: as before (pinned fits)
+    silent = dataclasses.replace(result, concept_totals=totals * [[1], [1], [0]])
+    assert concept_name(silent, 2) == "concept 2"
+
+
 def test_distinctive_words_are_words_heard_in_the_concept(capsys):
     """A variational E_q[w] gives unheard words mass, so a concept's list read "bed 0.60 |
     distinctive: sofa x1.7, bed x1.6" with 'sofa' never heard there (the word list had just

@@ -12,8 +12,14 @@ sweeps, seed 0) the 31.8 m^2 place whose answering words are bedroom, entrance, 
 refrigerator read "entrance" and the one answering parlor, shelf, tv and closet "shelf" (now
 "bedroom" and "parlor", their top words); on the seeded default demo every place's top word
 answers it, and its names are the same under both rules ("sink" for the kitchen). Where no
-word's answer is the concept, the region is named by its top word, and a region where no word
-was heard by ``concept N`` (even where a word's answer is it: that answer is the prior's alone).
+word's answer is the concept, the region is named by its most probable word heard there (under
+the point labels, where the result keeps ``word_counts``:
+:func:`~spcopyro.results.concept_words.shown_top_words`, as the word lists), else by its top
+word; a variational E_q[w] gives unheard words mass, and its top word named a region after a
+word never heard in it. A posterior mean (Gibbs) ranks its heard words first: the same name. A
+fit that did not model its words (``use_words`` off: w the prior's, every word tied) is named by
+its top word as before. A region where no word was heard is named ``concept N`` (even where a
+word's answer is it: that answer is the prior's alone).
 Place words and object words are not told apart (a fit does not know which is which).
 
 Used by the place graph (:attr:`~spcopyro.robot.navigation.places.Place.name`: ``show
@@ -26,7 +32,7 @@ from __future__ import annotations
 import numpy as np
 
 from spcopyro.config import WORDS
-from spcopyro.results.concept_words import ranked
+from spcopyro.results.concept_words import ranked, shown_top_words
 
 __all__ = ["answered_words", "concept_name", "concept_names"]
 
@@ -63,8 +69,9 @@ def concept_name(
     result: object, concept: int, answers: dict[int, tuple[str, ...]] | None = None
 ) -> str:
     """The name of ``concept``'s region (module docstring): its most probable answered word, else
-    its top word, else ``concept N``. ``answers``: :func:`answered_words` with ``heard_only``, when
-    already computed (naming many concepts)."""
+    its most probable heard word (its top word where the result does not keep ``word_counts``,
+    they hold none for it or the fit did not model its words), else ``concept N``. ``answers``:
+    :func:`answered_words` with ``heard_only``, when already computed (naming many concepts)."""
     if answers is None:
         answers = answered_words(result, heard_only=True)
     if answers.get(concept):
@@ -72,7 +79,11 @@ def concept_name(
     heard = getattr(result, "heard", lambda _: None)(concept)
     emissions = getattr(result, "emissions", ())
     if heard != 0 and any(table.name == WORDS for table in emissions):
-        top = result.top_words(concept, 1)  # type: ignore[attr-defined]
+        config = getattr(result, "config", None)
+        if config is None or config.uses(WORDS):  # the first heard word, where known
+            top = shown_top_words(result, concept, 1)
+        else:  # words not modelled: w is the prior's, every word tied, named by tie order
+            top = result.top_words(concept, 1)  # type: ignore[attr-defined]
         if top:
             return top[0][0]
     return f"concept {concept}"
