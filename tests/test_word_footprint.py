@@ -205,6 +205,24 @@ def test_a_words_only_footprint_leaves_the_unread_fov_out_of_the_checkpoint_reco
     ]
 
 
+@pytest.mark.parametrize("radius", [0.0, 0.5])
+def test_a_word_footprint_equal_to_the_footprint_is_left_out_of_the_checkpoint_record(radius):
+    """--word-footprint R with --footprint R (0 and 0 too) counts as leaving it out: the record
+    leaves it out, so a resume without --word-footprint is not refused (the record kept it,
+    and differences() named a setting that changes nothing)."""
+    given = preparation_record(
+        preset("auto", footprint_radius=radius, word_footprint_radius=radius)
+    )
+    unset = preparation_record(preset("auto", footprint_radius=radius))
+    assert given == unset and differences({"p": given}, {"p": unset}) == []
+    # unset or truly different: recorded as before (to_json's, less the unread fields)
+    assert "word_footprint_radius" not in unset
+    other = preparation_record(preset("auto", footprint_radius=radius, word_footprint_radius=0.3))
+    assert other["word_footprint_radius"] == 0.3
+    named = "p.word_footprint_radius: 0.3 in the checkpoint, None here"
+    assert named in differences({"p": other}, {"p": unset})
+
+
 def test_reads_is_the_per_field_rule():
     for data, kernel, fov in [
         (DataPreparation(), False, False),
