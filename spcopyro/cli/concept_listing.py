@@ -48,9 +48,8 @@ def print_concepts(
     listed = [c for c in concepts if not _is_speck(c, result.grid.num_free)]
     for concept in listed[:limit]:
         heard = concept["words_heard"]
-        top = [(w, p) for w, p in concept["top_words"]]
         words = format_concept_words(
-            shown_top_words(result, concept["concept"], len(top), top=top),
+            shown_top_words(result, concept["concept"], len(concept["top_words"])),
             [(w, r, p) for w, r, p in concept["distinctive_words"]],
             heard,
         )

@@ -29,7 +29,7 @@ from collections.abc import Collection, Sequence
 
 import numpy as np
 
-from spcopyro._util.messages import listed, shown_count
+from spcopyro._util.messages import listed, plural, shown_count
 
 __all__ = [
     "MIN_LIFT",
@@ -133,31 +133,21 @@ def distinctive_items(
 
 
 def shown_words(
-    top: Sequence[tuple[str, float]],
-    row: np.ndarray | None = None,
-    heard: Collection[str] | None = None,
+    top: Sequence[tuple[str, float]], row: np.ndarray | None = None
 ) -> list[tuple[str, float]]:
     """The ``(word, p)`` of ``top`` worth printing at two decimals, the first always (the
     listing, the map's legend and labels and ``where`` use it). Left out: a word whose
     probability rounds to 0.00 ("bedroom 0.56, bed 0.42, entrance 0.00" read as a third word of
     the place), and, given the concept's whole ``row`` ``[V]``, a word at :func:`prior_share`:
     never heard there ("bathroom 0.57, bathtub 0.29, restroom 0.01", restroom one of 15 words
-    at the prior's 0.1 / 10.7, first of them by tie order only). ``heard``: the words heard in
-    the concept, where the result knows them (:func:`heard_words`): then they decide, a word
-    among them kept even at the row's minimum (every word heard, two of them as often as each
-    other), and a word not among them left out even above it (a variational method's E_q[w]
-    has no floor: the default house's svi fit listed "door 0.86, entrance 0.01, bathroom 0.01"
-    for a concept where only 'door' was heard). Heard means heard under the point labels
-    (``word_counts``): for a variational fit a word whose q mass in the concept comes only from
-    cells labelled otherwise is not listed."""
+    at the prior's 0.1 / 10.7, first of them by tie order only). Where the result knows the
+    words heard, :func:`shown_top_words` keeps only those before calling it."""
     floor = None if row is None else prior_share(row)
 
-    def unheard(word: str, p: float) -> bool:
-        if heard is not None:  # the counts say it: also where no floor does (a variational q)
-            return word not in heard
+    def unheard(p: float) -> bool:
         return floor is not None and round(p, RANK_DECIMALS) == floor
 
-    return [(w, p) for w, p in top if round(p, 2) > 0 and not unheard(w, p)] or list(top[:1])
+    return [(w, p) for w, p in top if round(p, 2) > 0 and not unheard(p)] or list(top[:1])
 
 
 def heard_words(result, concept: int) -> frozenset[str] | None:
@@ -171,25 +161,27 @@ def heard_words(result, concept: int) -> frozenset[str] | None:
     return frozenset(word for word, n in zip(result.vocabulary, row, strict=True) if n > 0)
 
 
-def shown_top_words(
-    result, concept: int, n: int, top: Sequence[tuple[str, float]] | None = None
-) -> list[tuple[str, float]]:
+def shown_top_words(result, concept: int, n: int) -> list[tuple[str, float]]:
     """:func:`shown_words` of concept ``concept``'s ``n`` most probable words of ``result`` (an
-    :class:`~spcopyro.results.result.SpCoResult`), given its row ``result.w[concept]`` ``[V]``
-    and its :func:`heard_words`: the words fit's listing, the map's legend and labels and
-    ``where`` print. Where the result knows the words heard, the ``n`` are the most probable
-    of those (ranked among them first, cut to ``n`` after): a variational E_q[w] can rank a
-    heard word below unheard ones, and cutting first listed fewer than ``n``, or an unheard
-    word alone where none of the top ``n`` was heard; a posterior mean (Gibbs) ranks its heard
-    words first, so it lists the same. ``top``: the ``n`` most probable words where the caller
-    has them already (a concept's ``top_words`` in ``result.concepts()``), used instead of
-    ``result.top_words(concept, n)`` only where the result does not know the words heard."""
-    row, heard = result.w[concept], heard_words(result, concept)  # [V]
+    :class:`~spcopyro.results.result.SpCoResult`): the words fit's listing, the map's legend
+    and labels and ``where`` print. Where the result knows the words heard in the concept
+    (:func:`heard_words`), they decide: a word among them kept even at the row's minimum (every
+    word heard, two of them as often as each other), and a word not among them left out even
+    above it (a variational method's E_q[w] has no floor: the default house's svi fit listed
+    "door 0.86, entrance 0.01, bathroom 0.01" for a concept where only 'door' was heard). Heard
+    means heard under the point labels (``word_counts``): for a variational fit a word whose q
+    mass in the concept comes only from cells labelled otherwise is not listed. The ``n`` are
+    then the most probable of the heard words (ranked among them first, cut to ``n`` after): a
+    variational E_q[w] can rank a heard word below unheard ones, and cutting first listed fewer
+    than ``n``, or an unheard word alone where none of the top ``n`` was heard; a posterior mean
+    (Gibbs) ranks its heard words first, so it lists the same. Where the result does not know
+    them (one saved before it kept ``word_counts``), the ``n`` most probable words less those at
+    the floor of its row ``result.w[concept]`` ``[V]`` (:func:`shown_words`)."""
+    heard = heard_words(result, concept)
     if heard:  # rank among the heard words, then cut (an empty set: as below, never printed)
         everyword = result.top_words(concept, len(result.vocabulary))  # [(word, p)] * V
-        return shown_words([(w, p) for w, p in everyword if w in heard], row, heard)[:n]
-    top = result.top_words(concept, n) if top is None else top
-    return shown_words(top, row, heard)
+        return shown_words([(w, p) for w, p in everyword if w in heard])[:n]
+    return shown_words(result.top_words(concept, n), result.w[concept])  # row [V]
 
 
 def prior_share(row: np.ndarray) -> float | None:
@@ -199,7 +191,7 @@ def prior_share(row: np.ndarray) -> float | None:
     mean ``(beta + n_lv) / (V beta + n_l)`` every unheard word has that minimum,
     ``beta / (V beta + n_l)``, and a draw's row (no two words equal) has none. Heard words tied
     at the minimum count share it too (every word heard, the rarest twice or more):
-    :func:`shown_words` keeps them where the result kept its counts (:func:`heard_words`); a
+    :func:`shown_top_words` keeps them where the result kept its counts (:func:`heard_words`); a
     result saved without them reads them as unheard, as it always did."""
     rounded = np.round(np.asarray(row, dtype=np.float64), RANK_DECIMALS)  # [V]
     if rounded.size < 2:
@@ -268,7 +260,7 @@ def speck_line(specks: Sequence[int], sizes: Sequence[int]) -> str:
     which, them = ("concept", "it") if len(specks) == 1 else ("concepts", "them")
     names = listed([str(c) for c in specks], SPECKS_NAMED)
     where = f"({which} {names}; concepts.json lists {them})"
-    count = f"{len(sizes)} {'speck' if len(sizes) == 1 else 'specks'}"  # "4 specks"
+    count = plural(len(sizes), "speck")  # "4 specks"
     return f"{count} of {cells_range(sizes)} where no word was heard {where}"
 
 
