@@ -366,6 +366,18 @@ def test_a_fit_the_preset_would_refine_but_cannot_says_why(home, tmp_path, capsy
         assert "not refined" not in capsys.readouterr().out
 
 
+@pytest.mark.parametrize("given", [["--footprint", "0.5"], ["--cell-size", "map"]])
+def test_a_fit_with_its_own_preparation_does_not_say_not_refined(home, tmp_path, capsys, given):
+    """A preparation given on the command line keeps a Gibbs fit unrefined too, silently: a
+    cavi fit with one printed 'not refined --refine refines --method gibbs fits only', blaming
+    --method where the preparation is the reason."""
+    argv = ["fit", str(home), "--no-figures", "--sweeps", "2", "--method", "cavi"]
+    assert main([*argv, "--out", str(tmp_path / "cavi"), *given]) == 0
+    printed = capsys.readouterr().out
+    assert "not refined" not in printed and "refining " not in printed
+    assert "\nfitted " in printed
+
+
 def test_no_refinement_without_a_model_grid_coarser_than_the_map(home, tmp_path, capsys):
     """``--cell-size map --refine always`` was accepted and refitted the map's cells on the same
     cells with the refinement's preparation (``--refine auto`` too, where the images separated

@@ -56,10 +56,11 @@ def apply_preset_inference(args: argparse.Namespace) -> None:
     # fit prints its decision (fit_refine.report_unrefined); a given preparation stays silent
     args.unrefined_by = None
     if args.refine is None:  # a preparation given on the command line is kept, not refined away
-        if recommended.get("refine", "never") != "never" and not refinable:
+        refine = recommended.get("refine", "never")
+        prepared = prepares_data(args)  # the reason, as for a Gibbs fit: nothing to say
+        if refine != "never" and not refinable and not prepared:
             args.unrefined_by = f"--method {args.method}" if args.method != "gibbs" else "--update"
-        refinable = refinable and not prepares_data(args)
-        args.refine = recommended.get("refine", "never") if refinable else "never"
+        args.refine = refine if refinable and not prepared else "never"
     elif args.refine != "never" and not refinable:
         raise ValueError(
             f"--refine {args.refine} refines a Gibbs fit (not --update or another --method): "
