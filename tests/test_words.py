@@ -410,6 +410,22 @@ def test_a_word_never_heard_in_a_concept_is_not_listed_among_its_words(tmp_path,
     assert [w for w, _ in shown_words(top, drawn)] == ["a", "b", "c"]
 
 
+def counted_words(
+    w: np.ndarray, counts: np.ndarray, totals: np.ndarray, inference: dict | None = None
+) -> SpCoResult:
+    """The two rooms' result with the word table ``w`` [L, V], the concepts' ``totals``
+    [L, 1 + M] and each word's ``counts`` [L, V] in each concept (``word_counts``); its
+    ``inference`` ``{}`` unless given: a variational fit's, words as the method estimates them."""
+    base = two_rooms()
+    return dataclasses.replace(
+        base,
+        emissions=(base.emissions[0], EmissionTable("words", WORDS, w)),
+        concept_totals=totals,
+        word_counts=counts,
+        inference={} if inference is None else inference,
+    )
+
+
 def test_a_word_heard_as_rarely_as_the_rarest_is_listed(tmp_path, capsys):
     """Every word heard in the left room, bed and sofa once each: their posterior mean (1.1 / 6.3)
     is the row's minimum, shared by two words, which :func:`prior_share` reads as the share of
@@ -422,14 +438,11 @@ def test_a_word_heard_as_rarely_as_the_rarest_is_listed(tmp_path, capsys):
 
     counts = np.array([[4.0, 1.0, 1.0], [0.0, 4.0, 2.0], [0.0, 0.0, 0.0]])  # [L, V]
     w = (counts + 0.1) / (counts.sum(1, keepdims=True) + 3 * 0.1)  # [L, V]
-    base = two_rooms()
-    result = dataclasses.replace(
-        base,
-        emissions=(base.emissions[0], EmissionTable("words", WORDS, w)),
-        concept_totals=np.array([[3.0, 3.0, 6.0], [2.0, 2.0, 6.0], [0.0, 0.0, 0.0]]),
-        word_counts=counts,
-        inference={"parameters": "posterior mean given the point labels"},
+    totals = np.array([[3.0, 3.0, 6.0], [2.0, 2.0, 6.0], [0.0, 0.0, 0.0]])  # [L, 1 + M]
+    result = counted_words(
+        w, counts, totals, {"parameters": "posterior mean given the point labels"}
     )
+    base = two_rooms()  # no counts kept
     assert heard_words(result, 0) == {"kitchen", "bed", "sofa"}
     assert heard_words(result, 1) == {"bed", "sofa"} and heard_words(base, 0) is None
     assert shown_top_words(result, 0, 3) == result.top_words(0, 3)
@@ -465,14 +478,8 @@ def test_a_variational_concept_lists_only_the_words_heard_there(tmp_path, capsys
 
     counts = np.array([[5.0, 0.0, 0.0], [0.0, 4.0, 2.0], [0.0, 0.0, 0.0]])  # [L, V]
     w = np.array([[0.80, 0.15, 0.05], [0.1, 0.6, 0.3], [0.7, 0.16, 0.14]])  # [L, V], no ties
-    base = two_rooms()
-    result = dataclasses.replace(
-        base,
-        emissions=(base.emissions[0], EmissionTable("words", WORDS, w)),
-        concept_totals=np.array([[3.0, 3.0, 5.0], [2.0, 2.0, 6.0], [0.0, 0.0, 0.0]]),
-        word_counts=counts,
-        inference={},  # a variational fit's: words as the method estimates them
-    )
+    totals = np.array([[3.0, 3.0, 5.0], [2.0, 2.0, 6.0], [0.0, 0.0, 0.0]])  # [L, 1 + M]
+    result = counted_words(w, counts, totals)  # a variational fit's: words as it estimates them
     assert [w for w, _ in result.top_words(0, 3)] == ["kitchen", "bed", "sofa"]
     assert [w for w, _ in shown_top_words(result, 0, 3)] == ["kitchen"]
     assert [w for w, _ in shown_top_words(result, 1, 3)] == ["bed", "sofa"]
@@ -509,14 +516,8 @@ def test_a_variational_concept_ranks_its_heard_words_before_cutting(capsys):
     lists as the cut-first rule did."""
     counts = np.array([[0.0, 0.0, 2.0], [3.0, 4.0, 0.0], [1.0, 0.0, 0.0]])  # [L, V]
     w = np.array([[0.6, 0.25, 0.15], [0.1, 0.6, 0.3], [0.7, 0.16, 0.14]])  # [L, V], no floor
-    base = two_rooms()
-    result = dataclasses.replace(
-        base,
-        emissions=(base.emissions[0], EmissionTable("words", WORDS, w)),
-        concept_totals=np.array([[3.0, 3.0, 2.0], [2.0, 2.0, 7.0], [1.0, 1.0, 1.0]]),
-        word_counts=counts,
-        inference={},
-    )
+    totals = np.array([[3.0, 3.0, 2.0], [2.0, 2.0, 7.0], [1.0, 1.0, 1.0]])  # [L, 1 + M]
+    result = counted_words(w, counts, totals)
     assert [w for w, _ in shown_top_words(result, 0, 1)] == ["sofa"]  # not kitchen, unheard
     assert [w for w, _ in shown_top_words(result, 1, 2)] == ["bed", "kitchen"]
     assert shown_top_words(result, 1, 0) == []
@@ -527,8 +528,7 @@ def test_a_variational_concept_ranks_its_heard_words_before_cutting(capsys):
     assert region_text(result, 0).splitlines()[1].startswith("sofa 0.15"), region_text(result, 0)
     floor = np.array([[0.5, 0.25, 0.25], [0.1, 0.1, 0.8], [0.6, 0.2, 0.2]])  # [L, V], Gibbs
     heard = np.array([[4.0, 1.0, 0.0], [0.0, 0.0, 5.0], [1.0, 0.0, 0.0]])  # [L, V]
-    words = EmissionTable("words", WORDS, floor)
-    gibbs = dataclasses.replace(result, emissions=(base.emissions[0], words), word_counts=heard)
+    gibbs = counted_words(floor, heard, totals)
     for concept in range(3):
         for n in range(4):
             known = heard_words(gibbs, concept)  # never empty here
@@ -549,14 +549,7 @@ def test_a_concept_no_word_answers_is_named_by_its_most_probable_heard_word():
     counts = np.array([[5.0, 0.0, 0.0], [0.0, 4.0, 2.0], [0.0, 1.0, 0.0]])  # [L, V]
     w = np.array([[0.6, 0.2, 0.2], [0.1, 0.6, 0.3], [0.7, 0.16, 0.14]])  # [L, V], no floor
     totals = np.array([[3.0, 3.0, 5.0], [2.0, 2.0, 6.0], [1.0, 1.0, 1.0]])  # [L, 1 + M]
-    base = two_rooms()
-    result = dataclasses.replace(
-        base,
-        emissions=(base.emissions[0], EmissionTable("words", WORDS, w)),
-        concept_totals=totals,
-        word_counts=counts,
-        inference={},
-    )
+    result = counted_words(w, counts, totals)
     assert 2 not in answered_words(result, heard_only=True)  # kitchen: 0's, bed and sofa: 1's
     assert result.top_words(2, 1)[0][0] == "kitchen"
     assert concept_name(result, 2) == "bed"
@@ -580,14 +573,8 @@ def test_distinctive_words_are_words_heard_in_the_concept(capsys):
     result saved without them ranks every word, as before."""
     counts = np.array([[5.0, 0.0, 0.0], [0.0, 4.0, 0.0], [1.0, 0.0, 0.0]])  # [L, V]
     w = np.array([[0.80, 0.15, 0.05], [0.1, 0.6, 0.3], [0.7, 0.16, 0.14]])  # [L, V]
-    base = two_rooms()
-    result = dataclasses.replace(
-        base,
-        emissions=(base.emissions[0], EmissionTable("words", WORDS, w)),
-        concept_totals=np.array([[3.0, 3.0, 5.0], [2.0, 2.0, 4.0], [1.0, 1.0, 1.0]]),
-        word_counts=counts,
-        inference={},
-    )
+    totals = np.array([[3.0, 3.0, 5.0], [2.0, 2.0, 4.0], [1.0, 1.0, 1.0]])  # [L, 1 + M]
+    result = counted_words(w, counts, totals)
     old = dataclasses.replace(result, word_counts=None)
     assert [w for w, _, _ in old.distinctive_words(1, 3)] == ["sofa", "bed"]
     assert [w for w, _, _ in result.distinctive_words(1, 3)] == ["bed"]
