@@ -130,7 +130,7 @@ def concept_word_counts(
     """[L, V] each word's count in each concept's region under the ``[N]`` labels (the model's
     counts, n_lv of the module docstring, counted whether or not the config reads words): the
     rows add up to :func:`concept_totals`' words column. A word whose count is 0 was never heard
-    in the concept (:func:`~spcopyro.results.concept_words.shown_words`)."""
+    in the concept (:func:`~spcopyro.results.concept_words.heard_words`)."""
     tensor = _as_samples(labels)[0]  # [N]
     counts = data.modality(WORDS).counts  # [M, V]
     table = torch.zeros(config.num_concepts, counts.shape[-1], dtype=DTYPE)  # [L, V]

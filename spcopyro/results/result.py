@@ -124,8 +124,8 @@ class SpCoResult:
     alone (:meth:`where` warns); None when unknown (an old result)."""
     word_counts: np.ndarray | None = None
     """[L, V] each word's count in each concept's region under ``labels`` (the model's counts), 0
-    for a word never heard there: the word lists keep a heard word whose probability ties the
-    lowest (:func:`~spcopyro.results.concept_words.shown_words`); None when unknown (an old
+    for a word never heard there: the word lists keep a heard word, the rest out
+    (:func:`~spcopyro.results.concept_words.shown_top_words`); None when unknown (an old
     result, whose lists read the unheard words from ``w`` alone)."""
 
     @classmethod
