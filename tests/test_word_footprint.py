@@ -276,3 +276,22 @@ def test_the_data_line_leaves_out_a_fov_the_images_do_not_read():
     assert "(uniform, images 90 deg wide)" in data_line(
         DataPreparation(footprint_radius=0.5, footprint_fov=90.0)
     )
+
+
+@pytest.mark.parametrize(
+    ("words", "expected"),
+    [(0.0, "0.75 m footprints (words at cell)"), (0.5, "0.75 m, words' 0.5 m footprints")],
+)
+def test_the_observed_cells_line_names_the_words_footprint_as_the_data_line(words, expected):
+    """With ``--word-footprint 0`` the summary's observed cells line said "within their 0.75 m,
+    words' 0 m footprints" beside the data line's "words at cell": both say "words at cell"."""
+    from spcopyro.cli.common import _summary
+    from spcopyro.data.model_grid import model_house
+    from spcopyro.synthetic import make_house
+
+    data = preset("coarse", word_footprint_radius=words).data
+    house = model_house(make_house(seed=0, spec=HouseSpec.embedded()), data.cell_size)
+    lines = _summary(house, warn=False, preparation=data).splitlines()
+    observed = next(x for x in lines if x.startswith("observed cells"))
+    assert observed.endswith(f" within their {expected}")
+    assert ("words at cell" in data_line(data)) == (words == 0.0)

@@ -225,15 +225,17 @@ def _placement_lines(
     house: House, counts: CellCounts, preparation: DataPreparation | None
 ) -> list[str]:
     """:func:`_summary`'s lines of a map with free cells: the observed cells (those the
-    footprints reach too, given a footprint radius) and where the observations were placed."""
+    footprints reach too, given a footprint radius; words counted at their cell named as the
+    data line names them, ``words at cell``) and where the observations were placed."""
     observed = f"{len(counts.cells)} (where observations were placed)"
     prep = preparation
     if prep is not None and prep.has_footprint:
         spread = prepared_cell_counts(house.grid, house.observations, prep, source=house.source,
                                       warn=False)  # fmt: skip
         radius, words = prep.footprint_radius, prep.words_radius
-        own = "" if words == radius else f", words' {words:g} m"
-        observed += f"; {len(spread.cells)} within their {radius:g} m{own} footprints"
+        own = "" if words == radius or not words else f", words' {words:g} m"
+        at_cell = " (words at cell)" if words != radius and not words else ""  # the data line's
+        observed += f"; {len(spread.cells)} within their {radius:g} m{own} footprints{at_cell}"
     p = counts.placement
     return [
         f"observed cells   {observed}",
