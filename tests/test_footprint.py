@@ -100,6 +100,35 @@ def test_weights_sum_to_one_observation_and_stay_on_free_cells(problem, kernel, 
         assert (weights.getnnz(axis=1)[:-1] == 1).all()
 
 
+@pytest.mark.parametrize(("kernel", "fov"), [("uniform", None), ("gaussian", 90.0)])
+def test_radius_zero_weights_are_the_own_cells_without_dijkstra(problem, kernel, fov, monkeypatch):
+    """Radius 0 (``--word-footprint 0`` beside the images' footprint) gives each observation its
+    own cell, weight 1: the arrays a radius below one cell gives through Dijkstra, bit for bit,
+    without building the graph or calling Dijkstra (it ran both for nothing before)."""
+    import scipy.sparse.csgraph
+
+    import spcopyro.data.footprint as footprint_module
+
+    grid, obs = problem
+    cells, _, _ = place_observations(grid, obs.image_xy, 0.0)
+    cells = np.concatenate([cells, [-1], cells[:2]])  # an unplaced one, two sharing a cell
+    yaw = np.linspace(-3.0, 3.0, cells.size)
+    dijkstra = footprint_weights(grid, cells, 0.01, kernel, yaw=yaw, fov=fov)  # own cell only
+    done: list[int] = []
+
+    def refused(*args, **kwargs):
+        raise AssertionError("radius 0 built the graph or called Dijkstra")
+
+    monkeypatch.setattr(scipy.sparse.csgraph, "dijkstra", refused)
+    monkeypatch.setattr(footprint_module, "free_cell_graph", refused)
+    zero = footprint_weights(grid, cells, 0.0, kernel, yaw=yaw, fov=fov, advance=done.append)
+    assert zero.shape == dijkstra.shape and zero.dtype == dijkstra.dtype
+    for name in ("data", "indices", "indptr"):
+        a, b = getattr(zero, name), getattr(dijkstra, name)
+        assert a.dtype == b.dtype and a.tobytes() == b.tobytes(), name
+    assert done == [np.unique(cells[cells >= 0]).size]  # every distinct observed cell
+
+
 def test_uniform_weights_are_equal_and_gaussian_ones_fall_with_distance(problem):
     grid, _ = problem
     source = np.array([index(grid, 2, 2)])

@@ -199,7 +199,8 @@ def footprint_weights(
         grid: the occupancy grid.
         cells: ``[T]`` int64 free index of each observation's cell
             (:func:`~spcopyro.data.place_observations`), -1 where unplaced (its row stays zero).
-        radius: R in metres, >= 0 (0: the observation's own cell, weight 1).
+        radius: R in metres, >= 0 (0: the observation's own cell, weight 1, without the
+            graph or a Dijkstra call).
         kernel: ``"uniform"`` or ``"gaussian"`` (sigma = R / 2, cut at R).
         yaw: ``[T]`` radians, the heading of each observation (images), used with ``fov``.
         fov: field of view in degrees (None: the whole disc); needs ``yaw``.
@@ -212,7 +213,6 @@ def footprint_weights(
         has positive weight), unplaced rows empty.
     """
     from scipy import sparse
-    from scipy.sparse.csgraph import dijkstra
 
     _check(radius, kernel, fov)
     cells = np.asarray(cells, dtype=np.int64).reshape(-1)  # [T]
@@ -226,6 +226,13 @@ def footprint_weights(
     placed = np.flatnonzero(cells >= 0)  # [T']
     if placed.size and cells[placed].max() >= n:
         raise ValueError(f"cells holds free index {cells[placed].max()}, the map has {n}")
+    if radius == 0:  # each observation whole at its own cell: no graph, no Dijkstra
+        if advance is not None and placed.size:
+            advance(int(np.unique(cells[placed]).size))
+        ones = np.ones(placed.size)  # [T'] the weight 1 / 1 of the own cell, kernel and fov alike
+        return sparse.csr_matrix((ones, (placed, cells[placed])), shape=(num_obs, n))
+    from scipy.sparse.csgraph import dijkstra
+
     graph = free_cell_graph(grid) if graph is None else graph
     centres = np.asarray(grid.cell_to_world(grid.free_cells), dtype=np.float64)  # [N, 2]
     sources = np.unique(cells[placed])  # [S]
