@@ -233,8 +233,9 @@ def _placement_lines(
         spread = prepared_cell_counts(house.grid, house.observations, prep, source=house.source,
                                       warn=False)  # fmt: skip
         radius, words = prep.footprint_radius, prep.words_radius
-        own = "" if words == radius or not words else f", words' {words:g} m"
-        at_cell = " (words at cell)" if words != radius and not words else ""  # the data line's
+        own = at_cell = ""
+        if words != radius:  # the data line's branching (fit_summary.data_line)
+            own, at_cell = (f", words' {words:g} m", "") if words else ("", " (words at cell)")
         observed += f"; {len(spread.cells)} within their {radius:g} m{own} footprints{at_cell}"
     p = counts.placement
     return [

@@ -253,7 +253,7 @@ def footprint_weights(
             found = np.flatnonzero(np.isfinite(dist[k]))  # [r] includes source (d = 0)
             reach = found if window is None else window[found]  # [r] free indices
             d = dist[k, found]  # [r] metres
-            if kernel == "uniform" or radius == 0:
+            if kernel == "uniform":
                 base = np.ones(d.size)
             else:
                 sigma = radius / 2.0
