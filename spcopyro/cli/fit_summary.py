@@ -10,9 +10,11 @@ import dataclasses
 import math
 from typing import TYPE_CHECKING
 
+from spcopyro._util.messages import plural
 from spcopyro.inference.names import objective_draws
 from spcopyro.inference.protocol import options_for_start, start_filled
 from spcopyro.maps.coarse import coarsening_factor
+from spcopyro.results.estimate_names import KEEPS_SPECKS, LOSS_LABELS, estimate_loss
 from spcopyro.results.refined import coarse_stage
 
 if TYPE_CHECKING:
@@ -20,7 +22,14 @@ if TYPE_CHECKING:
     from spcopyro.maps.grid import OccupancyGrid
     from spcopyro.results.result import SpCoResult
 
-__all__ = ["data_line", "inference_line", "model_line", "objective_line", "stopped_line"]
+__all__ = [
+    "data_line",
+    "estimate_line",
+    "inference_line",
+    "model_line",
+    "objective_line",
+    "stopped_line",
+]
 
 LABEL = 17
 """The width of the summary's label column: each line's label (``model``, ``data``,
@@ -187,3 +196,36 @@ def objective_line(result: SpCoResult) -> str | None:
     return (f"{'log joint':<{LABEL}}highest {result.best_objective:.1f} nats, at sweep "
             f"{result.best_iteration + 1} of {len(result.trace.objective)}{where} "
             "(every sweep's: trace.csv)")  # fmt: skip
+
+
+def _signed(change: float) -> str:
+    """``change`` signed, to two significant digits, without an exponent: ``+0.00078``,
+    ``+0.000076`` (``+7.6e-05`` read as a different kind of number beside ``0.1558``)."""
+    if change == 0 or not math.isfinite(change):
+        return f"{change:+g}"
+    return f"{change:+.{max(0, 1 - math.floor(math.log10(abs(change))))}f}"
+
+
+def estimate_line(result: SpCoResult, estimate: str, figures: bool) -> str:
+    """The summary's "point estimate" line of a result whose map is the point estimate
+    ``estimate`` (``vi``, ``binder``, ``vi-specks``, ...; the result's own where it records it):
+    its expected loss, the best single sample's, and, where speck cells were joined to other
+    concepts (:mod:`spcopyro.results.speck_join`), how many and the loss before, e.g.
+    ``point estimate   vi (expected variation of information 0.1558, best single sample 0.201;
+    6 speck cells joined to other concepts: +0.00079 from 0.155, vi-specks keeps them);
+    agreement.png``."""
+    options = result.inference
+    estimate = str(options.get("point_estimate", estimate))  # a refit's own
+    loss, _ = estimate_loss(estimate)
+    named = LOSS_LABELS["vi"] if loss == "vi" else "loss"  # not variational inference
+    text = (f"{'point estimate':<{LABEL}}{estimate} (expected {named} "
+            f"{options['expected_loss']:.4g}, best single sample "
+            f"{options['best_sample_loss']:.4g}")  # fmt: skip
+    joined = int(options.get("speck_cells_joined") or 0)  # type: ignore[call-overload]
+    if joined:
+        before = float(options["loss_with_specks"])  # type: ignore[arg-type]
+        change = float(options["expected_loss"]) - before  # type: ignore[arg-type]
+        text += (f"; {plural(joined, 'speck cell')} joined to other concepts: {_signed(change)} "
+                 f"from {before:.4g}, "
+                 f"{loss}{KEEPS_SPECKS} keeps them")  # fmt: skip
+    return text + ")" + ("; agreement.png" if figures else "")

@@ -23,7 +23,7 @@ from spcopyro.cli.common import pace
 from spcopyro.cli.concept_listing import next_step, print_concepts
 from spcopyro.cli.fit_figures import write_figures
 from spcopyro.cli.fit_resume import again_command
-from spcopyro.cli.fit_summary import objective_line
+from spcopyro.cli.fit_summary import estimate_line, objective_line
 from spcopyro.cli.fit_warnings import write_config
 from spcopyro.config import DEFAULT_PRESET
 from spcopyro.maps import save_map
@@ -122,14 +122,7 @@ def write_outputs(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) 
     bar.close()
     phases.mark("figures")
     if result.agreement is not None:
-        estimate = result.inference.get("point_estimate", args.point_estimate)  # a refit's own
-        from spcopyro.results.point_estimate import LOSS_LABELS
-
-        loss = LOSS_LABELS["vi"] if estimate == "vi" else "loss"  # not variational inference
-        print(f"point estimate   {estimate} (expected {loss} "
-              f"{result.inference['expected_loss']:.4g}, best single sample "
-              f"{result.inference['best_sample_loss']:.4g})"
-              f"{'' if args.no_figures else '; agreement.png'}")  # fmt: skip
+        print(estimate_line(result, args.point_estimate, figures=not args.no_figures))
     unit = "sweep" if result.trace.objective_name == "log joint" else "iteration"
     several = f"{chains} chains x " if chains > 1 else ""
     seconds = result.trace.seconds  # [sweeps] cumulative

@@ -14,7 +14,7 @@ from matplotlib.ticker import FuncFormatter, MaxNLocator
 from spcopyro._util.messages import plural
 from spcopyro.figures.png import save_figure
 from spcopyro.inference.names import SAMPLERS, objective_draws
-from spcopyro.results.point_estimate import LOSS_LABELS
+from spcopyro.results.point_estimate import KEEPS_SPECKS, LOSS_LABELS
 from spcopyro.results.refined import coarse_stage
 from spcopyro.results.result import SpCoResult
 from spcopyro.results.specks import in_use_text
@@ -51,10 +51,14 @@ def objective_axis_label(name: str, estimate: str = "") -> str:
 
 
 def _estimate_name(result: SpCoResult) -> str:
-    """ "variation-of-information point estimate" (:data:`ESTIMATE_NAMES`), or "point
-    estimate" for a result that does not say which."""
+    """ "variation-of-information point estimate" (:data:`ESTIMATE_NAMES`; ``vi-specks``'s
+    "... point estimate, specks kept"), or "point estimate" for a result that does not say
+    which."""
     kind = str(result.inference.get("point_estimate") or "")
-    return f"{ESTIMATE_NAMES.get(kind, kind)} point estimate".lstrip()
+    loss = kind.removesuffix(KEEPS_SPECKS)
+    kept = ", specks kept" if loss != kind and loss in ESTIMATE_NAMES else ""
+    kind = loss if kept else kind
+    return f"{ESTIMATE_NAMES.get(kind, kind)} point estimate{kept}".lstrip()
 
 
 def plot_trace(

@@ -28,7 +28,7 @@ from spcopyro.gibbs.run import GibbsChain, start_chain
 from spcopyro.inference.protocol import InferenceOutput, method_options
 from spcopyro.model import ModelData
 from spcopyro.results.point_estimate import with_point_estimate
-from spcopyro.results.posterior_means import with_posterior_means
+from spcopyro.results.posterior_means import with_posterior_means, words_per_cell
 from spcopyro.results.uncertainty import align_samples, count_steps, label_frequencies
 
 
@@ -185,9 +185,11 @@ def with_sample_marginals(
 ) -> InferenceOutput:
     """``output`` with the label frequencies of its samples from the second half of the sweeps
     as its marginals (unchanged if it kept none there), reporting ``point_estimate`` over them
-    (:func:`spcopyro.results.point_estimate.with_point_estimate`), and a sampler's pi and emissions
-    as their posterior means: given the point estimate's labels when it is one, else averaged over
-    those samples (:func:`~spcopyro.results.posterior_means.with_posterior_means`)."""
+    (:func:`spcopyro.results.point_estimate.with_point_estimate`; ``vi`` and ``binder`` without
+    specks, told by the words ``data`` counts at each cell, footprint included), and a
+    sampler's pi and emissions as their posterior means: given the point estimate's labels when
+    it is one, else averaged over those samples
+    (:func:`~spcopyro.results.posterior_means.with_posterior_means`)."""
     if output.label_samples is None or output.sample_iterations is None:
         return output
     late = np.asarray(output.sample_iterations) >= sweeps // 2
@@ -195,8 +197,9 @@ def with_sample_marginals(
         return output
     samples = np.asarray(output.label_samples)[late]  # [S', N]
     output = with_point_estimate(
-        output, samples, point_estimate, config.num_concepts, progress=progress
-    )
+        output, samples, point_estimate, config.num_concepts, progress=progress,
+        cell_words=words_per_cell(data),  # vi, binder: which clusters are specks
+    )  # fmt: skip
     # One set of concept names per result: the kept samples renamed to the reported map's
     # concepts before their frequencies are counted (issue 22 item 1).
     with timed("label_frequencies"):

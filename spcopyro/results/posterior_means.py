@@ -59,6 +59,7 @@ __all__ = [
     "concept_word_counts",
     "posterior_means",
     "with_posterior_means",
+    "words_per_cell",
 ]
 
 PARAMETERS_DRAWN = "one posterior draw (the sampler's state)"
@@ -122,6 +123,16 @@ def concept_totals(
         per_cell = modality.counts.sum(-1)  # [M]
         totals[:, 1 + j] = torch.zeros(num_l, dtype=DTYPE).index_add_(0, observed, per_cell)
     return totals
+
+
+def words_per_cell(data: ModelData) -> np.ndarray:
+    """[N] float64 the words counted at each free cell (the model's counts, 0 off the observed
+    cells): :func:`concept_totals`' words column is their sum over a concept's cells, so a
+    concept where none was heard (a speck's test, :mod:`spcopyro.results.speck_join`) is one
+    whose cells all hold 0."""
+    words = np.zeros(data.num_free)
+    words[data.obs_cells.numpy()] = data.modality(WORDS).counts.sum(-1).to(DTYPE).numpy()
+    return words
 
 
 def concept_word_counts(

@@ -2,17 +2,23 @@ r"""Speck concepts and how much of the posterior holds them.
 
 A speck (:func:`~spcopyro.results.concept_words.is_speck`) is a concept in use on fewer than
 :data:`~spcopyro.results.concept_words.SPECK_SHARE` of the free cells where no word was heard. It
-is counted among the concepts in use, but it is no place: on the README's fit of the embedded
-house (``spcopyro fit --out DIR``, 2026-12-05, with the 1 m footprint, the default before
-2026-12-06) the four one-cell specks sit on unobserved cells, two in doorways between two rooms
-and two in convex corners with two free neighbours, and their cells took the speck's concept in
-0.28, 0.30, 0.50 and 0.56 of the 50 kept samples (a room's cells: 1.00). Every kept sample holds
-~40 labels, ~39 of them one-cell droplets that form and dissolve; the variation-of-information
-estimate keeps a cell apart where its co-clustering probability with every neighbouring concept
-is below about one half (0.30-0.48 at these four: merging any of them into a neighbour raises the
-expected loss by 6e-5 to 6e-4 nats of 0.1505). With the 0.75 m footprint (the default since
-2026-12-06) the same fit has six specks, held in 28-56 % of the kept samples (median 38 %;
-docs/defaults.md).
+is counted among the concepts in use, but it is no place. Since 2026-12-06 the point estimates
+``vi`` and ``binder`` have none: their cells are joined to other concepts
+(:mod:`~spcopyro.results.speck_join`; on the README's fit of the embedded house its six
+one-cell specks, for 0.00078 nats of expected variation of information, 0.1550 -> 0.1558; those
+cells agree with the concept they joined in 34-46 % of the kept samples, which agreement.png
+shows). The specks that follow are those of ``vi-specks`` (the same estimate with its specks,
+``vi`` before 2026-12-06) and of the highest-log-joint state visited. On the README's fit of the
+embedded house (``spcopyro fit --out DIR``, 2026-12-05, with the 1 m footprint, the default
+before 2026-12-06) the four one-cell specks sit on unobserved cells, two in doorways between two
+rooms and two in convex corners with two free neighbours, and their cells took the speck's
+concept in 0.28, 0.30, 0.50 and 0.56 of the 50 kept samples (a room's cells: 1.00). Every kept
+sample holds ~40 labels, ~39 of them one-cell droplets that form and dissolve; the
+variation-of-information search keeps a cell apart where its co-clustering probability with
+every neighbouring concept is below about one half (0.30-0.48 at these four: merging any of them
+into a neighbour raises the expected loss by 6e-5 to 6e-4 nats of 0.1505). With the 0.75 m
+footprint (the default since 2026-12-06) the same fit has six specks in ``vi-specks``, held in
+28-56 % of the kept samples (median 38 %; docs/defaults.md).
 Under a preset that reports the highest-log-joint state visited (``original-code``, ``paper-dp``)
 the specks are that one state's droplets: 48 of them on the embedded house under
 ``--preset original-code --gamma 3 --sweeps 1000``, held by their cells in a median 6 % of the
