@@ -130,9 +130,8 @@ def words_per_cell(data: ModelData) -> np.ndarray:
     cells): :func:`concept_totals`' words column is their sum over a concept's cells, so a
     concept where none was heard (a speck's test, :mod:`spcopyro.results.speck_join`) is one
     whose cells all hold 0."""
-    words = np.zeros(data.num_free)
-    words[data.obs_cells.numpy()] = data.modality(WORDS).counts.sum(-1).to(DTYPE).numpy()
-    return words
+    per_cell = data.modality(WORDS).counts.sum(-1).to(DTYPE).numpy()  # [M]
+    return np.bincount(data.obs_cells.numpy(), weights=per_cell, minlength=data.num_free)
 
 
 def concept_word_counts(
