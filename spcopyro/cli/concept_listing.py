@@ -9,12 +9,14 @@ from typing import TYPE_CHECKING
 from spcopyro.results.concept_words import (
     ESTIMATED_WORDS,
     MIN_LIFT,
+    WORDS_NOT_MODELLED,
     cells_range,
     format_concept_words,
     format_words_heard,
     is_speck,
     shown_top_words,
     speck_line,
+    words_modelled,
 )
 from spcopyro.results.specks import support_text
 
@@ -33,10 +35,16 @@ def print_concepts(
     under :data:`SPECK_SHARE` of the free cells where no word was heard: a doorway or corner
     cell the Potts field holds weakly, docs/real_houses.md) share one line at the end, with how
     much of the posterior holds them (:func:`~spcopyro.results.specks.support_text`).
-    ``concepts``: ``result.concepts()`` where the caller has it already (computed if None)."""
+    ``concepts``: ``result.concepts()`` where the caller has it already (computed if None).
+    A fit that did not model its words (:func:`~spcopyro.results.concept_words.words_modelled`)
+    says so once, in the first line, and lists no concept's words: each w_l is the prior's."""
+    modelled = words_modelled(result)
     parameters = result.inference.get("parameters", ESTIMATED_WORDS)
-    print(f"concepts (words: {parameters}; distinctive: lift = p(word | concept) / p(word) > "
-          f"{MIN_LIFT:g}, p(word) the area-weighted mix):")  # fmt: skip
+    if modelled:
+        print(f"concepts (words: {parameters}; distinctive: lift = p(word | concept) / p(word) > "
+              f"{MIN_LIFT:g}, p(word) the area-weighted mix):")  # fmt: skip
+    else:
+        print(f"concepts (words: {WORDS_NOT_MODELLED}):")
     further = [t.name for t in result.emissions if t.name not in ("images", "words")]
     concepts = result.concepts() if concepts is None else concepts
     heard_counts = [c["words_heard"] for c in concepts if c["words_heard"] is not None]
@@ -48,18 +56,19 @@ def print_concepts(
     listed = [c for c in concepts if not _is_speck(c, result.grid.num_free)]
     for concept in listed[:limit]:
         heard = concept["words_heard"]
-        words = format_concept_words(
+        words = format_concept_words(  # none where the words were not modelled: said above
             shown_top_words(result, concept["concept"], len(concept["top_words"])),
             [(w, r, p) for w, r, p in concept["distinctive_words"]],
             heard,
         )
         for name in further:
             top = concept[f"top_{name}"][:2]
-            words += f"; {name}: " + ", ".join(f"{item} ({p:.2f})" for item, p in top)
+            items = f"{name}: " + ", ".join(f"{item} ({p:.2f})" for item, p in top)
+            words = f"{words}; {items}" if words else items
         heard_text = None if heard is None else format_words_heard(heard)
         count = "" if heard is None else f"{heard_text:>4} {_noun(heard_text == '1', 'word')}  "
         cells = f"{concept['cells']:>6} {_noun(concept['cells'] == 1, 'cell')}"
-        print(f"  concept {concept['concept']:>3}: {cells} {count}{words}")
+        print(f"  concept {concept['concept']:>3}: {cells} {count}{words}".rstrip())
     summaries = []  # (largest concept, line): the two summary lines, larger concepts first
     if len(listed) > limit:
         rest = [int(c["cells"]) for c in listed[limit:]]
@@ -72,6 +81,8 @@ def print_concepts(
         summaries.append((max(sizes), f"  + {speck_line(ids, sizes)}{support}"))
     for _, line in sorted(summaries, key=lambda s: -s[0]):  # stable: equal sizes keep order
         print(line)
+    if not modelled:  # no word lists, no lifts to speak of
+        return
     if len(concepts) == 1:  # p(word) is then the concept's own: every lift is 1
         print("  one concept in use: no word can be distinctive (a lift compares concepts)")
     elif not any(c["distinctive_words"] for c in concepts):
@@ -84,9 +95,10 @@ def next_step(
     """The line ``fit`` ends with: the figure to open (``figures``), and the ``where`` command
     that asks the map for the place of a word: the first distinctive (else top) word of the
     largest concept, "bathroom" on the default house (``concepts``: ``result.concepts()``, as
-    :func:`print_concepts` listed them). None: no figure, and no concept heard a word."""
+    :func:`print_concepts` listed them). None: no figure, and no concept heard a word (or the
+    fit did not model its words: ``where`` would answer with the prior, whatever the word)."""
     steps = [f"open {out / 'semantic_map.png'}"] if figures else []
-    for concept in concepts:
+    for concept in concepts if words_modelled(result) else []:
         words = concept["distinctive_words"] or concept["top_words"]
         if words and not _is_speck(concept, result.grid.num_free):
             word = str(words[0][0])

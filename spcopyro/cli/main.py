@@ -258,7 +258,7 @@ def _check_where_out(result_dir: str, out: str) -> None:
 
 
 def _where(args: argparse.Namespace) -> int:
-    from spcopyro.results.concept_words import shown_top_words
+    from spcopyro.results.concept_words import WORDS_NOT_MODELLED, shown_top_words, words_modelled
     from spcopyro.results.result import UnknownWordError
     from spcopyro.results.where import region_piece_sizes, runner_up_line, shared_answer_note
 
@@ -281,6 +281,8 @@ def _where(args: argparse.Namespace) -> int:
     distinctive = result.distinctive_words(answer.concept, 3)
     if result.heard(answer.concept) == 0:
         words = "none, no words heard here"
+    elif not words_modelled(result):  # its warnings say what the answer is then
+        words = WORDS_NOT_MODELLED
     elif distinctive:
         words += "; distinctive: " + ", ".join(f"{w} x{r:.1f}" for w, r, _ in distinctive)
     print(f"'{answer.word}' is concept {answer.concept} (p(concept | word) = "

@@ -40,6 +40,7 @@ from spcopyro.results.concept_words import (
     named_specks,
     shown_top_words,
     speck_line,
+    words_modelled,
 )
 from spcopyro.results.result import SpCoResult
 from spcopyro.results.specks import support_text
@@ -117,15 +118,15 @@ def region_text(
     line, each with its probability and, if distinctive, its lift (``"kitchen 0.31 x4.2"``);
     on a further region of the same concept, ``[concept]`` and its name on one line (the word
     ``where`` answers with it, :func:`~spcopyro.results.concept_names.concept_name`, as the place
-    graph names it: the kitchen whose top word is "sink" reads ``[3] kitchen``).
-    A concept where no word was heard: ``[concept]`` and ``"no words heard here"``.
-    ``name``: the concept's name when the caller has it
-    (:func:`~spcopyro.results.concept_names.concept_names` once for every region of a map:
-    each call without it ranks the whole vocabulary again); None: computed here."""
-    if not largest:
+    graph names it: the kitchen whose top word is "sink" reads ``[3] kitchen``). A concept where
+    no word was heard: ``[concept]`` and ``"no words heard here"``; any other region of a fit
+    that did not model its words: ``[concept]`` alone. ``name``: the concept's name when the
+    caller has it (:func:`~spcopyro.results.concept_names.concept_names` once for every region
+    of a map: each call without it ranks the whole vocabulary again); None: computed here."""
+    if not largest and words_modelled(result):  # else its name is no word: [concept]
         name = concept_name(result, concept) if name is None else name
         return f"[{concept}]" if name == f"concept {concept}" else f"[{concept}] {name}"
-    if result.heard(concept) == 0:
+    if result.heard(concept) == 0 and largest:
         return f"[{concept}]\n{NO_WORDS}"
     lifts = result.lift()[concept]  # [V]
     index = {w: k for k, w in enumerate(result.vocabulary)}
@@ -208,10 +209,10 @@ def concept_handles(
         heard = result.heard(c)
         cells = int(sizes[c])
         if heard == 0:
-            words = NO_WORDS
-        else:
-            top = shown_top_words(result, c, n_words)  # as fit prints
-            words = ", ".join(f"{w} {p:.2f}" for w, p in top)
+            words = f": {NO_WORDS}"
+        else:  # as fit prints: none where the fit did not model its words (the title says so)
+            top = shown_top_words(result, c, n_words)
+            words = ": " * bool(top) + ", ".join(f"{w} {p:.2f}" for w, p in top)
             distinctive = result.distinctive_words(c, n_words)
             if distinctive:
                 words += "\n      distinctive: " + ", ".join(
@@ -221,7 +222,7 @@ def concept_handles(
         noun = "word" if heard_text == "1" else "words"  # not "1 words heard"
         count = "" if heard is None or heard == 0 else f", {heard_text} {noun} heard"
         size = cells_range([cells])  # "1 cell", not "1 cells", as fit prints
-        handles.append(Patch(color=colours[c] / 255.0, label=f"[{c}] {size}{count}: {words}"))
+        handles.append(Patch(color=colours[c] / 255.0, label=f"[{c}] {size}{count}{words}"))
     summaries = []  # (largest concept, entry): the two summary lines, larger concepts first
     if len(used) > limit:
         rest = [int(sizes[c]) for c in used[limit:]]

@@ -60,7 +60,13 @@ from spcopyro.maps import (
     render_labels,
 )
 from spcopyro.results.concept_names import concept_names
-from spcopyro.results.concept_words import ESTIMATED_WORDS, NO_WORDS, shown_top_words
+from spcopyro.results.concept_words import (
+    ESTIMATED_WORDS,
+    NO_WORDS,
+    WORDS_NOT_MODELLED,
+    shown_top_words,
+    words_modelled,
+)
 from spcopyro.results.result import SpCoResult
 from spcopyro.results.specks import in_use_text
 from spcopyro.results.uncertainty import (
@@ -177,7 +183,8 @@ def semantic_map_figure(
     lift of the distinctive ones, ``x4.2``) on the concept's largest region, ``[concept]`` and
     its best word on each further one, "no words heard here" for a concept whose region holds
     no observed word (:func:`~spcopyro.figures.map_pieces.region_text`). A legend lists the largest
-    concepts with their words; ``observations`` given, a circle marks where each word was heard,
+    concepts with their words (a fit that did not model its words: its title says so, and no
+    entry or label lists any); ``observations`` given, a circle marks where each word was heard,
     filled with the colour of the concept there. ``max_labelled``: label only the regions of
     that many largest concepts (default: all).
     """
@@ -217,9 +224,11 @@ def semantic_map_figure(
     # the words' p as fit's listing names it: a variational fit's are no posterior means
     words = ("words (posterior mean p; " if "parameters" in result.inference
              else f"{ESTIMATED_WORDS} (")  # fmt: skip
+    words += "x lift = p(word | concept) / p(word))"
+    if not words_modelled(result):  # said once, here: no entry or label lists words
+        words = f"words {WORDS_NOT_MODELLED}"
     map_legend(axes[-1], handles, below=wide, columns=2, fontsize=7, frameon=False,
-               title=f"concepts, largest first: {words}x lift = p(word | concept) / p(word))",
-               title_fontsize=7)  # fmt: skip
+               title=f"concepts, largest first: {words}", title_fontsize=7)  # fmt: skip
     crowded = (
         f", {len(skipped)} left unlabelled ({_unlabelled_text(result, skipped)})" if skipped else ""
     )
@@ -352,6 +361,8 @@ def where_figure(
                frameon=False)  # fmt: skip
     if result.heard(answer.concept) == 0:
         words = NO_WORDS
+    elif not words_modelled(result):  # its warnings say what the answer is then
+        words = WORDS_NOT_MODELLED
     else:
         top = shown_top_words(result, answer.concept, 3)
         words = ", ".join(f"{w} {p:.2f}" for w, p in top)

@@ -17,14 +17,21 @@ the point labels, where the result keeps ``word_counts``:
 :func:`~spcopyro.results.concept_words.shown_top_words`, as the word lists), else by its top
 word; a variational E_q[w] gives unheard words mass, and its top word named a region after a
 word never heard in it. A posterior mean (Gibbs) ranks its heard words first: the same name. A
-fit that did not model its words (``use_words`` off: w the prior's, every word tied) is named by
-its top word as before. A region where no word was heard is named ``concept N`` (even where a
-word's answer is it: that answer is the prior's alone).
+fit that did not model its words (``use_words`` off,
+:func:`~spcopyro.results.concept_words.words_modelled`: w the prior's, every word tied) is still
+named by a word in tie order, as before: no word it learnt, but the ``concepts()`` table of a
+pinned fit holds these names (tests/pinned_runs.py, ``fit-torch-spcoa-init-8nbr``), so naming its
+concepts ``concept N`` waits for those pins to be recorded again. The outputs that list words do
+not show them: the semantic map labels such a fit's regions ``[concept]`` alone, and ``fit``'s
+listing, the legend and ``where`` say that the words were not modelled. A region where no word
+was heard is named ``concept N`` (even where a word's answer is it: that answer is the prior's
+alone).
 Place words and object words are not told apart (a fit does not know which is which).
 
 Used by the place graph (:attr:`~spcopyro.robot.navigation.places.Place.name`: ``show
 --graph``, ``navigate``'s routes), ``concepts.json``'s ``name`` and the semantic map's label of
-a concept's further regions. numpy only: ``spcopyro show`` imports it.
+a concept's further regions (of a fit that modelled its words). numpy only: ``spcopyro show``
+imports it.
 """
 
 from __future__ import annotations
@@ -32,7 +39,7 @@ from __future__ import annotations
 import numpy as np
 
 from spcopyro.config import WORDS
-from spcopyro.results.concept_words import ranked, shown_top_words
+from spcopyro.results.concept_words import ranked, shown_top_words, words_modelled
 
 __all__ = ["answered_words", "concept_name", "concept_names"]
 
@@ -79,8 +86,7 @@ def concept_name(
     heard = getattr(result, "heard", lambda _: None)(concept)
     emissions = getattr(result, "emissions", ())
     if heard != 0 and any(table.name == WORDS for table in emissions):
-        config = getattr(result, "config", None)
-        if config is None or config.uses(WORDS):  # the first heard word, where known
+        if words_modelled(result):  # the first heard word, where known
             top = shown_top_words(result, concept, 1)
         else:  # words not modelled: w is the prior's, every word tied, named by tie order
             top = result.top_words(concept, 1)  # type: ignore[attr-defined]

@@ -20,7 +20,10 @@ that points "where is v?" towards it; a lift near 1 says the word says nothing a
 
 A concept whose region holds no observed word gets no word list at all (:data:`NO_WORDS`): its
 w_l is its prior (the uniform posterior mean, or a random draw for a sampler's state), not
-something learnt.
+something learnt. Nor does any concept of a fit that did not model its words (``use_words`` off,
+:func:`words_modelled`): every w_l is the prior's, every word tied, and a list of them (in tie
+order) was read as what the concept means; the listing, the legend, the map's labels and
+``where`` say :data:`WORDS_NOT_MODELLED` once instead.
 """
 
 from __future__ import annotations
@@ -30,10 +33,12 @@ from collections.abc import Collection, Sequence
 import numpy as np
 
 from spcopyro._util.messages import listed, plural, shown_count
+from spcopyro.config import WORDS
 
 __all__ = [
     "MIN_LIFT",
     "NO_WORDS",
+    "WORDS_NOT_MODELLED",
     "ESTIMATED_WORDS",
     "SPECK_SHARE",
     "SPECKS_NAMED",
@@ -52,10 +57,26 @@ __all__ = [
     "ranked",
     "shown_words",
     "shown_top_words",
+    "words_modelled",
 ]
 
 NO_WORDS = "no words heard here"
 """What a concept whose region holds no observed word shows instead of a word list."""
+
+WORDS_NOT_MODELLED = "not modelled (use_words off)"
+"""What a fit that did not model its words (:func:`words_modelled`) says once, where the words of
+its concepts would be listed: ``fit``'s listing (``words: not modelled (use_words off)``), the
+semantic map's legend and labels, ``where`` (which also warns that its answer is the prior's)."""
+
+
+def words_modelled(result: object) -> bool:
+    """Whether ``result``'s fit modelled its words: its config's
+    :meth:`~spcopyro.config.SpCoConfig.uses` of ``"words"`` (``use_words``; True for a result
+    without a config). Where not, every w_l is the prior's (a posterior mean with no counts:
+    uniform), every word tied, and no concept has a word list."""
+    config = getattr(result, "config", None)
+    return config is None or config.uses(WORDS)
+
 
 ESTIMATED_WORDS = "words as the method estimates them"
 """What a concept's word probabilities are when the fit recorded no ``inference["parameters"]``
@@ -176,7 +197,10 @@ def shown_top_words(result, concept: int, n: int) -> list[tuple[str, float]]:
     than ``n``, or an unheard word alone where none of the top ``n`` was heard; a posterior mean
     (Gibbs) ranks its heard words first, so it lists the same. Where the result does not know
     them (one saved before it kept ``word_counts``), the ``n`` most probable words less those at
-    the floor of its row ``result.w[concept]`` ``[V]`` (:func:`shown_words`)."""
+    the floor of its row ``result.w[concept]`` ``[V]`` (:func:`shown_words`). None where the fit
+    did not model its words (:func:`words_modelled`): its rows are the prior's, every word tied."""
+    if not words_modelled(result):
+        return []
     heard = heard_words(result, concept)
     if heard:  # rank among the heard words, then cut (an empty set: as below, never printed)
         everyword = result.top_words(concept, len(result.vocabulary))  # [(word, p)] * V

@@ -391,7 +391,7 @@ class SpCoResult:
         warnings = answer_warnings(
             posterior, weights, sizes, word=key, prior_name=prior,
             cell_area=self.grid.resolution**2, region=region,
-            connectivity=self.config.connectivity,
+            connectivity=self.config.connectivity, words_modelled=self.config.uses(WORDS),
         )  # fmt: skip
         if self.word_totals is not None and self.word_totals[word_index(self.vocabulary, key)] == 0:
             warnings = (

@@ -284,6 +284,7 @@ def answer_warnings(
     cell_area: float = 1.0,
     region: np.ndarray | None = None,
     connectivity: int = 4,
+    words_modelled: bool = True,
 ) -> tuple[str, ...]:
     r"""The warnings of the answer argmax ``posterior`` (see :class:`WhereAnswer`).
 
@@ -297,6 +298,9 @@ def answer_warnings(
         region: [H, W] bool, the best concept's cells (None: its pieces are not checked).
         connectivity: 4 or 8, the neighbourhood that joins the region's cells into pieces
             (the model's, :attr:`~spcopyro.config.SpCoConfig.connectivity`).
+        words_modelled: False for a fit that did not model its words (``use_words`` off,
+            :func:`~spcopyro.results.concept_words.words_modelled`): every w_l is the prior's,
+            so the posterior is the prior whatever the word, which the first warning says.
 
     With c the best concept and c' the runner-up, it warns when
 
@@ -309,16 +313,25 @@ def answer_warnings(
 
     when the region (not a speck itself) lies in several pieces, each under
     SMALL_REGION_FRACTION * N cells (specks strewn over the map, not a place), and when one
-    concept labels the whole map (every word points there).
+    concept labels the whole map (every word points there); first of all, when the fit did not
+    model its words.
     """
     posterior = np.asarray(posterior, dtype=np.float64)  # [L]
     order = np.argsort(-posterior, kind="stable")
     concept = int(order[0])
     used = int((sizes > 0).sum())
     num_free = int(sizes.sum())
-    warnings = []
+    basis = "its share of the map" if prior_name == "area" else "pi"
+    warnings = [] if words_modelled else [
+        f"this fit did not model its words (use_words off): every concept's word distribution "
+        f"is its prior's, the same for every word, so the answer is the concept the prior "
+        f"({basis}) favours whatever the word, and says nothing about where {word!r} is"
+    ]  # fmt: skip
     if used < 2:
-        return (f"one concept labels the whole map: every word points to concept {concept}",)
+        return (
+            *warnings,
+            f"one concept labels the whole map: every word points to concept {concept}",
+        )
     best, second = float(posterior[concept]), float(posterior[order[1]])
     if second > 0 and close_to_guess(best / second):
         warnings.append(
@@ -326,7 +339,6 @@ def answer_warnings(
         )
     evidence = bayes_factor(best, float(prior[concept]))
     if evidence < EVIDENCE_WARNING:
-        basis = "its share of the map" if prior_name == "area" else "pi"
         warnings.append(
             f"the word {word!r} says little about concept {concept}: it changes that concept's "
             f"odds by a factor of {evidence:.2f} (< {EVIDENCE_WARNING:g}), so the answer "
