@@ -69,6 +69,16 @@ differing only in four names (fit-torch-paper-dp: shower -> bathroom; fit-torch-
 kitchen; converged-numba-one-block: table -> bedroom, sink -> kitchen), and the old rule's tables
 gave the stored digests; those three digests were recorded again, the floats kept.
 
+An eighth intended change (2026-12-07): a fit that did not model its words (``use_words`` off)
+lists no words for its concepts: ``concepts()`` gives it empty ``top_words`` and a ``words_note``
+"words not modelled (use_words off)", and names its concepts ``concept N``
+(:mod:`spcopyro.results.concept_names`), where it listed five words tied at the prior's
+probability and named every concept "kitchen" by tie order. Of the scenarios only
+``fit-torch-spcoa-init-8nbr`` (``use_words=False``) fits so; checked before recording, its
+arrays are identical to those before the change but for the concept table (its text differs
+only in those three keys of the four concepts that heard words; its numbers lose the 20 tied
+probabilities, the rest equal), and its digest and floats were recorded again.
+
 Not a change (issue 25, item 4): the compiled sweep can draw its globals' label-free gamma
 variates ahead, on a worker thread (:mod:`spcopyro.gibbs.numba_globals`, ``SPCOPYRO_PRIOR_THREAD``
 = auto, on or off), which consumes other random numbers; it is opt-in, so every pin holds under

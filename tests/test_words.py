@@ -542,8 +542,8 @@ def test_a_concept_no_word_answers_is_named_by_its_most_probable_heard_word():
     E_q[w] gives unheard words mass, so the speck (concept 2, one cell), where only 'bed' was
     heard, was named "kitchen" (its w 0.70, never heard there) while its word list read 'bed'.
     Its name is now its most probable heard word (:func:`shown_top_words`); a result without
-    counts, whose counts hold none for it, or whose fit did not model its words, is named by its
-    top word as before, and one where no word was heard ``concept 2``."""
+    counts, or whose counts hold none for it, is named by its top word as before, and one where
+    no word was heard, or whose fit did not model its words, ``concept 2``."""
     from spcopyro.results.concept_names import answered_words, concept_name
 
     counts = np.array([[5.0, 0.0, 0.0], [0.0, 4.0, 2.0], [0.0, 1.0, 0.0]])  # [L, V]
@@ -561,7 +561,7 @@ def test_a_concept_no_word_answers_is_named_by_its_most_probable_heard_word():
     none_counted = dataclasses.replace(result, word_counts=counts * [[1], [1], [0]])
     assert concept_name(none_counted, 2) == "kitchen"
     unmodelled = dataclasses.replace(result, config=result.config.replace(use_words=False))
-    assert concept_name(unmodelled, 2) == "kitchen"  # w the prior's: as before (pinned fits)
+    assert concept_name(unmodelled, 2) == "concept 2"  # w the prior's: no word names it
     silent = dataclasses.replace(result, concept_totals=totals * [[1], [1], [0]])
     assert concept_name(silent, 2) == "concept 2"
 

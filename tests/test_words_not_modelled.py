@@ -12,6 +12,7 @@ prior's whatever the word.
 from __future__ import annotations
 
 import dataclasses
+import json
 
 import numpy as np
 from hand_results import WORDS, two_rooms
@@ -21,6 +22,7 @@ from spcopyro.config import preset
 from spcopyro.figures.map_pieces import concept_handles, region_text
 from spcopyro.figures.plotting import semantic_map_figure, where_figure
 from spcopyro.fit.house import fit_house
+from spcopyro.results.concept_names import concept_names
 from spcopyro.results.concept_words import shown_top_words
 from spcopyro.results.result import EmissionTable, SpCoResult
 from spcopyro.synthetic import make_house
@@ -111,3 +113,27 @@ def test_a_fit_without_words_lists_none_and_where_says_why(tmp_path, capsys):
     printed = capsys.readouterr()
     assert f"its words: {WORDS_NOT_MODELLED})" in printed.out.splitlines()[0], printed.out
     assert f"warning: {NOT_MODELLED_WARNING}" in printed.err.splitlines()[0], printed.err
+
+
+def test_concepts_json_and_the_names_hold_no_tied_words(tmp_path):
+    """``concepts.json`` said ``"top_words": [["kitchen", 0.33], ["bed", 0.33], ...]`` and named
+    every concept "kitchen" (a word in tie order); it keeps its keys, with empty word lists and
+    a ``words_note``, as for a concept where no word was heard, and names the concepts
+    ``concept N``. The saved result loads and answers ``where`` as before."""
+    from spcopyro.robot.navigation.places import place_graph
+
+    unmodelled = _rooms(False)
+    assert concept_names(unmodelled) == {0: "concept 0", 1: "concept 1", 2: "concept 2"}
+    assert concept_names(_rooms(True))[0] == "kitchen"
+    unmodelled.save(tmp_path / "fit")
+    saved = json.loads((tmp_path / "fit" / "concepts.json").read_text())
+    by_id = {c["concept"]: c for c in saved}
+    for c in (0, 1):
+        assert by_id[c]["top_words"] == [] and by_id[c]["distinctive_words"] == []
+        assert by_id[c]["words_note"] == f"words {WORDS_NOT_MODELLED}"
+        assert by_id[c]["words_heard"] > 0
+    assert by_id[2]["words_note"] == "no words heard here"
+    loaded = SpCoResult.load(tmp_path / "fit")
+    assert loaded.where("bed").concept == unmodelled.where("bed").concept
+    places = place_graph(unmodelled, min_area=0.0).places
+    assert all(p.words == () and p.name == f"concept {p.concept}" for p in places), places

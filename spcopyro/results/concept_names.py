@@ -18,14 +18,11 @@ the point labels, where the result keeps ``word_counts``:
 word; a variational E_q[w] gives unheard words mass, and its top word named a region after a
 word never heard in it. A posterior mean (Gibbs) ranks its heard words first: the same name. A
 fit that did not model its words (``use_words`` off,
-:func:`~spcopyro.results.concept_words.words_modelled`: w the prior's, every word tied) is still
-named by a word in tie order, as before: no word it learnt, but the ``concepts()`` table of a
-pinned fit holds these names (tests/pinned_runs.py, ``fit-torch-spcoa-init-8nbr``), so naming its
-concepts ``concept N`` waits for those pins to be recorded again. The outputs that list words do
-not show them: the semantic map labels such a fit's regions ``[concept]`` alone, and ``fit``'s
-listing, the legend and ``where`` say that the words were not modelled. A region where no word
-was heard is named ``concept N`` (even where a word's answer is it: that answer is the prior's
-alone).
+:func:`~spcopyro.results.concept_words.words_modelled`: w the prior's, every word tied) names
+every concept ``concept N``: its top word was a word in tie order (the embedded house's five
+concepts were all "restroom"), and no word's ``where`` answer is learnt. A region where no word
+was heard is named ``concept N`` too (even where a word's answer is it: that answer is the
+prior's alone).
 Place words and object words are not told apart (a fit does not know which is which).
 
 Used by the place graph (:attr:`~spcopyro.robot.navigation.places.Place.name`: ``show
@@ -53,7 +50,7 @@ def answered_words(result: object, heard_only: bool = False) -> dict[int, tuple[
     without words."""
     table = next((t for t in getattr(result, "emissions", ()) if t.name == WORDS), None)
     vocabulary = result.vocabulary  # type: ignore[attr-defined]
-    if table is None or not vocabulary:
+    if table is None or not vocabulary or not words_modelled(result):  # the prior's answers
         return {}
     posterior = np.asarray(result.word_posteriors())  # type: ignore[attr-defined]  # [L, V]
     w = np.asarray(table.probabilities)  # [L, V] p(word | concept)
@@ -76,8 +73,9 @@ def concept_name(
     result: object, concept: int, answers: dict[int, tuple[str, ...]] | None = None
 ) -> str:
     """The name of ``concept``'s region (module docstring): its most probable answered word, else
-    its most probable heard word (its top word where the result does not keep ``word_counts``,
-    they hold none for it or the fit did not model its words), else ``concept N``. ``answers``:
+    its most probable heard word (its top word where the result does not keep ``word_counts``
+    or they hold none for it), else ``concept N`` (always, where the fit did not model its
+    words). ``answers``:
     :func:`answered_words` with ``heard_only``, when already computed (naming many concepts)."""
     if answers is None:
         answers = answered_words(result, heard_only=True)
@@ -86,10 +84,7 @@ def concept_name(
     heard = getattr(result, "heard", lambda _: None)(concept)
     emissions = getattr(result, "emissions", ())
     if heard != 0 and any(table.name == WORDS for table in emissions):
-        if words_modelled(result):  # the first heard word, where known
-            top = shown_top_words(result, concept, 1)
-        else:  # words not modelled: w is the prior's, every word tied, named by tie order
-            top = result.top_words(concept, 1)  # type: ignore[attr-defined]
+        top = shown_top_words(result, concept, 1)  # none where the words were not modelled
         if top:
             return top[0][0]
     return f"concept {concept}"

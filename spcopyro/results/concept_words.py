@@ -58,6 +58,7 @@ __all__ = [
     "shown_words",
     "shown_top_words",
     "words_modelled",
+    "words_note",
 ]
 
 NO_WORDS = "no words heard here"
@@ -76,6 +77,16 @@ def words_modelled(result: object) -> bool:
     uniform), every word tied, and no concept has a word list."""
     config = getattr(result, "config", None)
     return config is None or config.uses(WORDS)
+
+
+def words_note(result: object, heard: float | None) -> str | None:
+    """``concepts.json``'s ``words_note`` of a concept of ``result`` where ``heard`` words were
+    heard (None: unknown): :data:`NO_WORDS` where none was, ``"words not modelled (use_words
+    off)"`` for any other concept of a fit that did not model its words (its ``top_words`` and
+    ``distinctive_words`` are empty, as a concept's where no word was heard), else None."""
+    if heard == 0:
+        return NO_WORDS
+    return None if words_modelled(result) else f"words {WORDS_NOT_MODELLED}"
 
 
 ESTIMATED_WORDS = "words as the method estimates them"

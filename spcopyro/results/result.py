@@ -32,7 +32,7 @@ from spcopyro.config import IMAGES, WORDS, DataPreparation, SpCoConfig
 from spcopyro.inference.protocol import InferenceOutput, Trace
 from spcopyro.maps import OccupancyGrid, load_map, save_map
 from spcopyro.results.concept_names import concept_names
-from spcopyro.results.concept_words import NO_WORDS, distinctive_items, heard_words, lift, ranked
+from spcopyro.results.concept_words import distinctive_items, heard_words, lift, ranked, words_note
 from spcopyro.results.semantic_map import UnknownWordError, word_index, word_key
 from spcopyro.results.specks import with_speck_fields
 from spcopyro.results.where import (
@@ -313,8 +313,9 @@ class SpCoResult:
         :func:`~spcopyro.results.concept_names.concept_name`), cell count, pi, top words (and
         the top items of every further modality) with probabilities; the observed cells and
         words heard in its region (``observed_cells``, ``words_heard``; None when unknown), its
-        distinctive words ``[word, lift, p]`` and, for a region where no word was heard,
-        ``words_note`` = :data:`~spcopyro.results.concept_words.NO_WORDS` and no word lists."""
+        distinctive words ``[word, lift, p]``, and no word lists but a ``words_note`` where no
+        word was heard or the fit did not model its words
+        (:func:`~spcopyro.results.concept_words.words_note`)."""
         sizes = self.concept_sizes()
         further = [t.name for t in self.emissions if t.name not in (IMAGES, WORDS)]
         summaries = []
@@ -322,7 +323,7 @@ class SpCoResult:
         for c in self.concepts_in_use():
             heard = self.heard(int(c))
             silent = heard == 0
-            top = [] if silent else self.top_words(int(c), n_words)
+            top = [] if silent or not self.config.uses(WORDS) else self.top_words(int(c), n_words)
             distinctive = self.distinctive_words(int(c), n_words)
             cells = None if self.concept_totals is None else int(self.concept_totals[c, 0])
             summary: dict[str, object] = {
@@ -334,7 +335,7 @@ class SpCoResult:
                 "observed_cells": cells,
                 "words_heard": heard,
                 "distinctive_words": [[w, r, p] for w, r, p in distinctive],
-                "words_note": NO_WORDS if silent else None,
+                "words_note": words_note(self, heard),
             }
             for modality in further:
                 summary[f"top_{modality}"] = [

@@ -2,10 +2,10 @@
 
 Nodes: the connected regions of one concept on the fit's grid (4-connected components of
 :meth:`~spcopyro.results.result.SpCoResult.label_image`), each with its area, centroid and the
-concept's top words (none where no word was heard) and its name
-(:func:`~spcopyro.results.concept_names.concept_name`: the word ``where`` answers with it, as
-``spcopyro where`` would); regions smaller than ``min_area`` square
-metres are dropped (and counted).
+concept's top words (none where no word was heard or the fit did not model its words) and its
+name (:func:`~spcopyro.results.concept_names.concept_name`: the word ``where`` answers with it,
+as ``spcopyro where`` would); regions smaller than ``min_area`` square metres are dropped (and
+counted).
 Edges: two regions whose cells touch (4-neighbours), with the length of the shared border
 (number of touching cell pairs x the cell size) and whether it is a doorway (a border of at most
 :data:`DOORWAY_WIDTH` metres). :meth:`PlaceGraph.route` is the shortest route over the edges,
@@ -27,6 +27,7 @@ from scipy.sparse.csgraph import shortest_path
 from spcopyro._util.messages import area_text, plural
 from spcopyro.maps.regions import concept_regions, region_contacts
 from spcopyro.results.concept_names import answered_words, concept_name
+from spcopyro.results.concept_words import words_modelled
 
 __all__ = [
     "DEFAULT_MIN_AREA",
@@ -217,7 +218,8 @@ def place_graph(result: object, min_area: float = DEFAULT_MIN_AREA) -> PlaceGrap
         concept = int(concept_of[region])
         if concept not in words:  # none where no word was heard: its top words are the prior's
             heard = getattr(result, "heard", lambda _: None)(concept)
-            top = result.top_words(concept, 3) if heard != 0 else []  # type: ignore[attr-defined]
+            listed = heard != 0 and words_modelled(result)  # not modelled: every word tied
+            top = result.top_words(concept, 3) if listed else []  # type: ignore[attr-defined]
             words[concept] = tuple(w for w, _ in top)
             names[concept] = concept_name(result, concept, answers)  # concept_names' rule
         places.append(Place(node, concept, int(cells[node]), float(cells[node] * cell_area),
