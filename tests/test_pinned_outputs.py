@@ -69,7 +69,7 @@ differing only in four names (fit-torch-paper-dp: shower -> bathroom; fit-torch-
 kitchen; converged-numba-one-block: table -> bedroom, sink -> kitchen), and the old rule's tables
 gave the stored digests; those three digests were recorded again, the floats kept.
 
-An eighth intended change (2026-12-07): a fit that did not model its words (``use_words`` off)
+An eighth intended change (2026-12-06): a fit that did not model its words (``use_words`` off)
 lists no words for its concepts: ``concepts()`` gives it empty ``top_words`` and a ``words_note``
 "words not modelled (use_words off)", and names its concepts ``concept N``
 (:mod:`spcopyro.results.concept_names`), where it listed five words tied at the prior's

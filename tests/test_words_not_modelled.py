@@ -135,5 +135,23 @@ def test_concepts_json_and_the_names_hold_no_tied_words(tmp_path):
     assert by_id[2]["words_note"] == "no words heard here"
     loaded = SpCoResult.load(tmp_path / "fit")
     assert loaded.where("bed").concept == unmodelled.where("bed").concept
+    assert loaded.where("bed").warnings[0].startswith(NOT_MODELLED_WARNING), loaded.where("bed")
     places = place_graph(unmodelled, min_area=0.0).places
     assert all(p.words == () and p.name == f"concept {p.concept}" for p in places), places
+
+
+def test_no_distinctive_words_where_the_words_were_not_modelled():
+    """A fit without words whose w is not uniform (a w from elsewhere: a fit's rows are the
+    prior's, but nothing in the result says so) gave its concepts distinctive words from it:
+    ``concepts()`` and the legend said "distinctive: kitchen x1.8" beside no word list. Its
+    lifts are no more learnt than its top words: none are listed."""
+    modelled = _rooms(True)
+    unmodelled = dataclasses.replace(_rooms(False), emissions=modelled.emissions)  # w not uniform
+    assert modelled.distinctive_words(0)[0][0] == "kitchen"  # the same w, its words modelled
+    assert unmodelled.distinctive_words(0) == []
+    assert all(c["distinctive_words"] == [] for c in unmodelled.concepts())
+    labels = [h.get_label() for h in concept_handles(unmodelled, np.zeros((3, 3), np.uint8))]
+    assert not any("distinctive" in label for label in labels), labels
+    assert labels[:2] == ["[0] 150 cells, 4 words heard", "[1] 149 cells, 5 words heard"]
+    texts = _texts(semantic_map_figure(unmodelled))
+    assert not any(word in text for text in texts for word in WORDS), texts

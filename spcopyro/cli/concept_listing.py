@@ -98,7 +98,7 @@ def next_step(
     :func:`print_concepts` listed them). None: no figure, and no concept heard a word (or the
     fit did not model its words: ``where`` would answer with the prior, whatever the word)."""
     steps = [f"open {out / 'semantic_map.png'}"] if figures else []
-    for concept in concepts if words_modelled(result) else []:
+    for concept in concepts:  # none lists a word where the fit did not model its words
         words = concept["distinctive_words"] or concept["top_words"]
         if words and not _is_speck(concept, result.grid.num_free):
             word = str(words[0][0])

@@ -40,7 +40,6 @@ from spcopyro.results.concept_words import (
     named_specks,
     shown_top_words,
     speck_line,
-    words_modelled,
 )
 from spcopyro.results.result import SpCoResult
 from spcopyro.results.specks import support_text
@@ -123,10 +122,10 @@ def region_text(
     that did not model its words: ``[concept]`` alone. ``name``: the concept's name when the
     caller has it (:func:`~spcopyro.results.concept_names.concept_names` once for every region
     of a map: each call without it ranks the whole vocabulary again); None: computed here."""
-    if not largest and words_modelled(result):  # else its name is no word: [concept]
+    if not largest:
         name = concept_name(result, concept) if name is None else name
         return f"[{concept}]" if name == f"concept {concept}" else f"[{concept}] {name}"
-    if result.heard(concept) == 0 and largest:
+    if result.heard(concept) == 0:
         return f"[{concept}]\n{NO_WORDS}"
     lifts = result.lift()[concept]  # [V]
     index = {w: k for k, w in enumerate(result.vocabulary)}

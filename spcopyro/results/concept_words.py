@@ -50,6 +50,8 @@ __all__ = [
     "format_words_heard",
     "heard_words",
     "item_marginal",
+    "listed_distinctive_words",
+    "listed_top_words",
     "lift",
     "named_specks",
     "near_uniform",
@@ -87,6 +89,34 @@ def words_note(result: object, heard: float | None) -> str | None:
     if heard == 0:
         return NO_WORDS
     return None if words_modelled(result) else f"words {WORDS_NOT_MODELLED}"
+
+
+def listed_top_words(result, concept: int, n: int) -> list[tuple[str, float]]:
+    """The ``n`` most probable words of concept ``concept`` of ``result`` with their
+    probabilities (``result.top_words``), as ``concepts()``' ``top_words`` and the place graph
+    list them: none where no word was heard in its region (its w_l is its prior) or the fit did
+    not model its words (:func:`words_modelled`: every word tied), as :func:`words_note` says."""
+    return result.top_words(concept, n) if _words_listed(result, concept) else []
+
+
+def listed_distinctive_words(result, concept: int, n: int) -> list[tuple[str, float, float]]:
+    """The ``n`` words of largest lift above :data:`MIN_LIFT` of concept ``concept`` of
+    ``result`` as ``(word, lift, p)`` (:func:`distinctive_items`), of the words heard in its
+    region where the result knows them (:func:`heard_words`): none where
+    :func:`listed_top_words` lists none (a fit that did not model its words: whatever lifts
+    its w holds, they are the prior's, not learnt)."""
+    if not _words_listed(result, concept):
+        return []
+    table, heard = result.emission(WORDS), heard_words(result, concept)  # heard: None if unknown
+    row = table.probabilities[concept]  # [V]
+    return distinctive_items(row, result.lift()[concept], table.items, n, heard=heard)
+
+
+def _words_listed(result, concept: int) -> bool:
+    """Whether concept ``concept`` of ``result`` lists words: some were heard in its region
+    (or ``result`` does not know) and the fit modelled its words."""
+    heard = getattr(result, "heard", lambda _: None)(concept)  # None: unknown, listed
+    return heard != 0 and words_modelled(result)
 
 
 ESTIMATED_WORDS = "words as the method estimates them"

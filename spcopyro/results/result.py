@@ -32,7 +32,14 @@ from spcopyro.config import IMAGES, WORDS, DataPreparation, SpCoConfig
 from spcopyro.inference.protocol import InferenceOutput, Trace
 from spcopyro.maps import OccupancyGrid, load_map, save_map
 from spcopyro.results.concept_names import concept_names
-from spcopyro.results.concept_words import distinctive_items, heard_words, lift, ranked, words_note
+from spcopyro.results.concept_words import (
+    lift,
+    listed_distinctive_words,
+    listed_top_words,
+    ranked,
+    words_modelled,
+    words_note,
+)
 from spcopyro.results.semantic_map import UnknownWordError, word_index, word_key
 from spcopyro.results.specks import with_speck_fields
 from spcopyro.results.where import (
@@ -299,14 +306,9 @@ class SpCoResult:
 
     def distinctive_words(self, concept: int, n: int = 3) -> list[tuple[str, float, float]]:
         """The ``n`` words of largest lift above 1 for a concept, as ``(word, lift, p)``
-        (:mod:`spcopyro.results.concept_words`), of the words heard in its region where the
-        result knows them (:func:`heard_words`); empty when no word was heard there."""
-        concept, n = self._concept(concept), _count(n)
-        if self.heard(concept) == 0:
-            return []
-        table, heard = self.emission(WORDS), heard_words(self, concept)  # heard: None if unknown
-        row = table.probabilities[concept]  # [V]
-        return distinctive_items(row, self.lift()[concept], table.items, n, heard=heard)
+        (:func:`~spcopyro.results.concept_words.listed_distinctive_words`): of the words heard
+        in its region where known; none where none was, or the fit did not model its words."""
+        return listed_distinctive_words(self, self._concept(concept), _count(n))
 
     def concepts(self, n_words: int = 3) -> list[dict[str, object]]:
         """Per concept in use: id, its region's ``name`` (the word ``where`` answers with it,
@@ -322,8 +324,7 @@ class SpCoResult:
         names = concept_names(self)
         for c in self.concepts_in_use():
             heard = self.heard(int(c))
-            silent = heard == 0
-            top = [] if silent or not self.config.uses(WORDS) else self.top_words(int(c), n_words)
+            top = listed_top_words(self, int(c), n_words)  # none: not heard or not modelled
             distinctive = self.distinctive_words(int(c), n_words)
             cells = None if self.concept_totals is None else int(self.concept_totals[c, 0])
             summary: dict[str, object] = {
@@ -392,7 +393,7 @@ class SpCoResult:
         warnings = answer_warnings(
             posterior, weights, sizes, word=key, prior_name=prior,
             cell_area=self.grid.resolution**2, region=region,
-            connectivity=self.config.connectivity, words_modelled=self.config.uses(WORDS),
+            connectivity=self.config.connectivity, words_modelled=words_modelled(self),
         )  # fmt: skip
         if self.word_totals is not None and self.word_totals[word_index(self.vocabulary, key)] == 0:
             warnings = (

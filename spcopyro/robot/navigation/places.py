@@ -27,7 +27,7 @@ from scipy.sparse.csgraph import shortest_path
 from spcopyro._util.messages import area_text, plural
 from spcopyro.maps.regions import concept_regions, region_contacts
 from spcopyro.results.concept_names import answered_words, concept_name
-from spcopyro.results.concept_words import words_modelled
+from spcopyro.results.concept_words import listed_top_words
 
 __all__ = [
     "DEFAULT_MIN_AREA",
@@ -217,9 +217,7 @@ def place_graph(result: object, min_area: float = DEFAULT_MIN_AREA) -> PlaceGrap
     for node, region in enumerate(order):
         concept = int(concept_of[region])
         if concept not in words:  # none where no word was heard: its top words are the prior's
-            heard = getattr(result, "heard", lambda _: None)(concept)
-            listed = heard != 0 and words_modelled(result)  # not modelled: every word tied
-            top = result.top_words(concept, 3) if listed else []  # type: ignore[attr-defined]
+            top = listed_top_words(result, concept, 3)  # as concepts() lists them
             words[concept] = tuple(w for w, _ in top)
             names[concept] = concept_name(result, concept, answers)  # concept_names' rule
         places.append(Place(node, concept, int(cells[node]), float(cells[node] * cell_area),
