@@ -305,9 +305,10 @@ class SpCoResult:
         return lift(self.emission(modality).probabilities, self.concept_sizes())
 
     def distinctive_words(self, concept: int, n: int = 3) -> list[tuple[str, float, float]]:
-        """The ``n`` words of largest lift above 1 for a concept, as ``(word, lift, p)``
-        (:func:`~spcopyro.results.concept_words.listed_distinctive_words`): of the words heard
-        in its region where known; none where none was, or the fit did not model its words."""
+        """The ``n`` words of largest lift above ``MIN_LIFT`` (1.1) for a concept, as
+        ``(word, lift, p)`` (:func:`~spcopyro.results.concept_words.listed_distinctive_words`):
+        of the words heard in its region where known; none where none was, or the fit did not
+        model its words."""
         return listed_distinctive_words(self, self._concept(concept), _count(n))
 
     def concepts(self, n_words: int = 3) -> list[dict[str, object]]:
