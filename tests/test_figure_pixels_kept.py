@@ -97,3 +97,68 @@ def test_a_map_s_image_is_drawn_one_way_in_house_figures_and_a_study_s_maps(tmp_
     assert drawn == [(*house.grid.shape, 3)] * 2
     plot_house(house, tmp_path / "house.png")
     assert len(drawn) == 3
+
+
+def _placed_one_text_per_spot(fig, ax, labels):
+    """place_labels as it was before it measured a label once: a text made at every spot tried,
+    measured there and removed where it overlaps (the reference of the test below)."""
+    import warnings
+
+    from spcopyro.figures.map_pieces import OUTLINE
+
+    renderer = fig.canvas.get_renderer()
+    ax.apply_aspect()
+    boxes, skipped = [], []
+    for index, (x, y, text, style, spots) in enumerate(labels):
+        for at in [(x, y), *spots]:
+            artist = ax.text(*at, text, ha="center", va="center", path_effects=OUTLINE,
+                             zorder=4, **style)  # fmt: skip
+            with warnings.catch_warnings():
+                warnings.filterwarnings("ignore", message="Glyph .* missing from font")
+                box = artist.get_window_extent(renderer=renderer).expanded(1.15, 1.25)
+            if not any(box.overlaps(other) for other in boxes):
+                boxes.append(box)
+                break
+            artist.remove()
+        else:
+            skipped.append(index)
+    return len(boxes), skipped
+
+
+def test_a_label_measured_once_is_placed_as_a_text_made_at_every_spot():
+    """place_labels measures each label once and moves its box to the spots it tries: the box of
+    a text written there to the bit (matplotlib moves a text's layout to its position), so 200
+    crowded labels of the semantic map's styles, some of two lines or other scripts, take the
+    same spots and the same are left out as with a text made and measured at every spot."""
+    from matplotlib.figure import Figure
+
+    from spcopyro.figures.map_pieces import _label_box, place_labels
+
+    rng = np.random.default_rng(0)
+    styles = [{"fontsize": 7, "style": "normal", "color": "black"},
+              {"fontsize": 6, "style": "italic", "color": "0.25"}]  # fmt: skip
+    words = ["[12] kitchen 0.41 x15", "[3] bed", "no words heard here", "[7] 台所 0.20\nsofa",
+             "[101] entrance 0.40 x7.0, corridor 0.23"]  # fmt: skip
+    labels = []
+    for k in range(200):
+        (x, y), *spots = rng.uniform([0.3, -1.7], [11.9, 6.4], (6, 2)).tolist()  # [6, 2]
+        labels.append((x, y, words[k % len(words)], styles[k % 2], [tuple(s) for s in spots]))
+    placed = []
+    for place in (place_labels, _placed_one_text_per_spot):
+        fig = Figure(figsize=(9, 5))
+        ax = fig.subplots()
+        ax.set(xlim=(0, 12.3), ylim=(-2, 6.7), aspect="equal")
+        FigureCanvasAgg(fig)
+        placed.append(
+            (place(fig, ax, labels), [(t.get_text(), t.get_position()) for t in ax.texts])
+        )
+        renderer = fig.canvas.get_renderer()
+        for text in ax.texts:  # the box moved to a text's spot is the text's own
+            style = {"fontsize": text.get_fontsize(), "style": text.get_style()}
+            moved = _label_box(fig, renderer, text.get_text(), style).translated(
+                *ax.transData.transform(text.get_position())
+            )
+            assert np.array_equal(moved.get_points(), text.get_window_extent(renderer).get_points())
+    assert placed[0] == placed[1]
+    (written, left_out), texts = placed[0]
+    assert written == len(texts) and 0 < len(left_out) < 200 - 20  # crowded, not all left out

@@ -245,7 +245,8 @@ def _fit_staged(job: FitJob) -> int:
     several = args.method == "gibbs" and _chain_count(args) > 1
     prefetch = None
     if not args.no_figures:
-        prefetch = FigurePrefetch(house, job.staged.path, start=not several)
+        prefetch = FigurePrefetch(house, job.staged.path, start=not several,
+                                  concepts=config.num_concepts)  # fmt: skip
     try:
         with contextlib.nullcontext() if prefetch is None else when_chains_start(prefetch.start):
             fitted = _fit(job, init, saved, prefetch)

@@ -42,15 +42,18 @@ ABANDON_TIMEOUT = 10.0
 
 
 class FigurePrefetch:
-    """Import the figures' modules and draw ``house.png`` into ``out`` on a daemon thread, started
+    """Import the figures' modules, choose the semantic map's palette for up to ``concepts``
+    concepts (:func:`~spcopyro.maps.palette.concept_palette`, kept for the figures: 0.02 s of
+    the map's drawing on room2ldk4) and draw ``house.png`` into ``out`` on a daemon thread, started
     at once, or by :meth:`start` when ``start`` is False (a fit whose chains run in forked
     processes starts it once they are forked: :func:`spcopyro.gibbs.chains.when_chains_start`).
     :meth:`join` waits for it; an error there is not raised but left to the figures drawn after
     the fit (which draw ``house.png`` again, as they do if it never started). A fit that stops
     (Ctrl-C, SIGTERM, an error) calls :meth:`abandon` instead."""
 
-    def __init__(self, house: House, out: Path, start: bool = True) -> None:
+    def __init__(self, house: House, out: Path, start: bool = True, concepts: int = 0) -> None:
         self.house_drawn = False
+        self._concepts = concepts
         self._abandoned = threading.Event()
         self._lock = threading.Lock()  # guards _newer and _running
         self._newer: House | None = None  # a house asked for by redraw, not yet taken
@@ -124,6 +127,9 @@ class FigurePrefetch:
             with timed("prefetch imports"):  # frozen after, as the fit's (_util.collector)
                 import_frozen("scipy.optimize")  # the point estimate's matching
                 plot_house = import_frozen("spcopyro.figures.plotting").plot_house
+            if self._concepts:
+                with timed("prefetch palette"):
+                    import_frozen("spcopyro.maps.palette").concept_palette(self._concepts)
             # _take: None once abandoned (the fit stopped: nothing more into its folder)
             while (house := self._take(house)) is not None:
                 with timed("prefetch house"):

@@ -143,6 +143,8 @@ def map_axes(
 
 def shown_in(axes: list[Axes], x: float, y: float) -> Axes:
     """The first of ``axes`` whose limits hold the world point (x, y) (the first, if none)."""
+    if len(axes) == 1:  # a map in one axes: the first, whatever its limits
+        return axes[0]
     for ax in axes:
         (x0, x1), (y0, y1) = sorted(ax.get_xlim()), sorted(ax.get_ylim())
         if x0 <= x <= x1 and y0 <= y <= y1:

@@ -32,6 +32,7 @@ of 40 from 6.8 to 15.2.
 
 from __future__ import annotations
 
+import functools
 from typing import Any
 
 import numpy as np
@@ -40,6 +41,7 @@ from spcopyro.maps.regions import region_contacts
 
 __all__ = [
     "concept_colours",
+    "concept_palette",
     "delta_e",
     "delta_e94",
     "distinct_colours",
@@ -120,19 +122,30 @@ def delta_e94(a: Any, b: Any) -> np.ndarray:
     return _lab_delta_e94(srgb_to_lab(a), srgb_to_lab(b))
 
 
+@functools.cache
 def _candidates() -> tuple[np.ndarray, np.ndarray]:
     """The candidate colours ``[M, 3]`` uint8 and their CIELAB ``[M, 3]``: an 18-level grid per
-    channel, lightness within [_MIN_LIGHTNESS, _MAX_LIGHTNESS], chroma at least _MIN_CHROMA."""
+    channel, lightness within [_MIN_LIGHTNESS, _MAX_LIGHTNESS], chroma at least _MIN_CHROMA.
+    Computed once (read-only arrays)."""
     levels = np.round(np.linspace(0, 255, _LEVELS)).astype(np.uint8)
     grid = np.stack(np.meshgrid(levels, levels, levels, indexing="ij"), axis=-1).reshape(-1, 3)
     lab = srgb_to_lab(grid)  # [M, 3]
     keep = (lab[:, 0] >= _MIN_LIGHTNESS) & (lab[:, 0] <= _MAX_LIGHTNESS)
     keep &= np.hypot(lab[:, 1], lab[:, 2]) >= _MIN_CHROMA  # no grey
-    return grid[keep], lab[keep]
+    grid, lab = grid[keep], lab[keep]
+    grid.flags.writeable = lab.flags.writeable = False
+    return grid, lab
 
 
 def _num_candidates() -> int:
     return len(_candidates()[0])
+
+
+_PICKS: list[np.ndarray] = [np.zeros(0, dtype=np.int64)]
+"""The candidates :func:`distinct_colours` picked for the largest ``n`` asked for so far, in
+order. The k-th pick does not depend on ``n``, so the colours of a smaller ``n`` are the first
+``n`` of these (``spcopyro fit`` asks for the semantic map's palette on its figures' thread while
+the chains run: :class:`~spcopyro.cli.fit_figures.FigurePrefetch`)."""
 
 
 def distinct_colours(n: int) -> np.ndarray:
@@ -149,15 +162,23 @@ def distinct_colours(n: int) -> np.ndarray:
     grid, lab = _candidates()  # [M, 3] uint8, [M, 3] Lab
     if n > len(grid):
         raise ValueError(f"at most {len(grid)} distinct colours are available, asked for {n}")
-    # distance of every candidate to the nearest colour taken so far (reserved ones included)
-    nearest = np.min(_lab_delta_e94(lab[:, None, :], srgb_to_lab(_RESERVED)[None]), axis=1)  # [M]
-    chosen = np.empty(n, dtype=np.int64)
-    for k in range(n):
-        pick = int(np.argmax(nearest))  # first maximum: deterministic
-        chosen[k] = pick
-        nearest = np.minimum(nearest, _lab_delta_e94(lab, lab[pick]))
-        nearest[pick] = -1.0  # never twice
-    return grid[chosen].copy()
+    if n > len(_PICKS[0]):
+        # distance of every candidate to the nearest colour taken so far (reserved ones included)
+        nearest = np.min(_lab_delta_e94(lab[:, None, :], srgb_to_lab(_RESERVED)[None]), axis=1)
+        chosen = np.empty(n, dtype=np.int64)  # [n]
+        for k in range(n):
+            pick = int(np.argmax(nearest))  # first maximum: deterministic
+            chosen[k] = pick
+            nearest = np.minimum(nearest, _lab_delta_e94(lab, lab[pick]))  # [M]
+            nearest[pick] = -1.0  # never twice
+        _PICKS[0] = chosen
+    return grid[_PICKS[0][:n]]  # [n, 3], a copy
+
+
+def concept_palette(count: int) -> np.ndarray:
+    """``[P, 3]`` uint8: the palette :func:`concept_colours` chooses from for ``count`` concepts,
+    the first ``P = 2 count`` :func:`distinct_colours` (all candidates where there are fewer)."""
+    return distinct_colours(min(2 * count, _num_candidates()))
 
 
 def region_adjacency(labels: Any) -> set[tuple[int, int]]:
@@ -179,8 +200,15 @@ def concept_colours(labels: Any, concepts: Any) -> np.ndarray:
     order = [int(c) for c in np.asarray(concepts).ravel()]
     if len(set(order)) != len(order):
         raise ValueError("concepts must be distinct")
-    palette = distinct_colours(min(2 * len(order), _num_candidates()))  # [P, 3]
+    palette = concept_palette(len(order))  # [P, 3]
     lab = srgb_to_lab(palette)  # [P, 3]
+    apart: dict[int, np.ndarray] = {}  # palette index j -> [P] Delta E to j, computed once
+
+    def to(j: int) -> np.ndarray:
+        if j not in apart:
+            apart[j] = _lab_delta_e94(lab, lab[j])  # [P]
+        return apart[j]
+
     position = {c: k for k, c in enumerate(order)}
     neighbours: dict[int, list[int]] = {k: [] for k in range(len(order))}
     for a, b in region_adjacency(labels):
@@ -192,7 +220,7 @@ def concept_colours(labels: Any, concepts: Any) -> np.ndarray:
     for k in range(len(order)):
         coloured = [given[j] for j in neighbours[k] if given[j] >= 0]
         if coloured:
-            distance = _lab_delta_e94(lab[:, None, :], lab[coloured][None, :, :])  # [P, n]
+            distance = np.stack([to(int(j)) for j in coloured], axis=1)  # [P, n]
             score = np.where(free, distance.min(axis=1), -1.0)  # [P]
             pick = int(np.argmax(score))
         else:
