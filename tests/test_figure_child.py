@@ -58,8 +58,8 @@ def _deadline(seconds: int):
 
 
 class _Split(fit_figures._Claims):
-    """The shared figures (trace, house, uncertainty, agreement: 0-3) taken as told: ``here`` by
-    the test's process, the others by the child."""
+    """The figures (semantic map, trace, house, uncertainty, agreement: 0-4, as ``NAMES``) taken
+    as told: ``here`` by the test's process, the others by the child."""
 
     here: tuple[int, ...] = ()
 
@@ -72,7 +72,7 @@ class _Split(fit_figures._Claims):
 
 
 def _split_figures(monkeypatch, here: tuple[int, ...]) -> None:
-    """The fit's shared figures split by :class:`_Split`: ``here`` drawn by this process."""
+    """The fit's figures split by :class:`_Split`: ``here`` drawn by this process."""
     monkeypatch.setattr(_Split, "here", here)
     monkeypatch.setattr(fit_figures, "_Claims", _Split)
 
@@ -118,7 +118,7 @@ def test_the_childs_warnings_join_the_fits_in_the_figures_order(tmp_path, monkey
     expected = _said(tmp_path / "here", fork=False)
     given = [(f"{name}: logged", f"UserWarning: {name}: warned") for name in NAMES]
     assert expected == [text for pair in given for text in pair]
-    _split_figures(monkeypatch, (1, 3))
+    _split_figures(monkeypatch, (0, 2, 4))
     assert _said(tmp_path / "forked", fork=None) == expected
     drawn_by = {name: int((tmp_path / "forked" / f"{name}.png").read_text()) for name in NAMES}
     assert {name for name, pid in drawn_by.items() if pid != PARENT} == {"trace", "uncertainty"}
@@ -129,7 +129,7 @@ def test_a_childs_warnings_larger_than_a_pipe_do_not_hang_the_figures(tmp_path, 
     child's figure: read before the child is joined, else both would wait for ever."""
     _warning_figures(monkeypatch, extra={"uncertainty": 3000})
     expected = _said(tmp_path / "here", fork=False)
-    _split_figures(monkeypatch, (0, 1, 3))  # the child draws the uncertainty map
+    _split_figures(monkeypatch, (0, 1, 2, 4))  # the child draws the uncertainty map
     with _deadline(20):
         said = _said(tmp_path / "forked", fork=None)
     assert len(said) == len(expected) == 2 * len(NAMES) + 3000 and said == expected
@@ -163,7 +163,7 @@ def _recording_children(monkeypatch) -> list[fit_figures._Child]:
 
 
 def test_a_figure_that_warns_in_the_child_is_in_config_json(tmp_path, monkeypatch):
-    """``spcopyro fit``: trace.png drawn in the child (it takes every shared figure) warns; its
+    """``spcopyro fit``: trace.png drawn in the child (it takes every figure) warns; its
     warning is in config.json's list, the list of the same fit with the fork disabled."""
     drawn_there: list[int] = []
     start = fit_figures._draw_in_child
@@ -183,14 +183,43 @@ def test_a_figure_that_warns_in_the_child_is_in_config_json(tmp_path, monkeypatc
     assert forked == alone
 
 
+def test_the_child_draws_the_semantic_map_while_the_fit_saves_its_result(tmp_path, monkeypatch):
+    """``spcopyro fit`` forks the figures' child before it saves its result, and the child
+    starts with the semantic map: here the save waits until semantic_map.png is in the staging
+    folder (the fit, waiting, takes no figure meanwhile). Before, the figures were drawn once
+    the result was saved, so the save waited in vain (about 0.1 s of room2ldk4's fit that the
+    figures now overlap)."""
+    from spcopyro.results.result import SpCoResult
+
+    save = SpCoResult.save
+    drawn_first: list[bool] = []
+
+    def save_once_the_map_is_drawn(self, out_dir, **kwargs):
+        png = Path(out_dir) / "semantic_map.png"  # written whole or not at all (replace_file)
+        deadline = time.monotonic() + 20
+        while not png.exists() and time.monotonic() < deadline:
+            time.sleep(0.01)
+        drawn_first.append(png.exists())
+        return save(self, out_dir, **kwargs)
+
+    monkeypatch.setattr(SpCoResult, "save", save_once_the_map_is_drawn)
+    out = tmp_path / "fit"
+    assert main(["fit", "--sweeps", "4", "--out", str(out)]) == 0
+    assert drawn_first == [True]
+    assert {"semantic_map.png", "trace.png", "house.png", "uncertainty.png"} <= {
+        path.name for path in out.iterdir()
+    }
+
+
 @pytest.mark.parametrize("signum", [signal.SIGINT, signal.SIGTERM], ids=["SIGINT", "SIGTERM"])
 def test_a_fit_stopped_while_it_waits_for_the_child_ends_the_child_first(
     tmp_path, monkeypatch, capsys, signum
 ):
-    """The child (every shared figure its own) signals the fit once the fit's semantic map is
-    drawn, then sleeps: the fit, waiting for it, stops (130), and the child has been ended by
-    SIGTERM (its default action: not fit's handler, which raised KeyboardInterrupt in the child)
-    before the staging folder was discarded, none of which is left; in seconds, not 30."""
+    """The child (every figure its own but the semantic map, which the fit draws) signals the
+    fit once the fit's semantic map is drawn, then sleeps: the fit, waiting for it, stops (130),
+    and the child has been ended by SIGTERM (its default action: not fit's handler, which raised
+    KeyboardInterrupt in the child) before the staging folder was discarded, none of which is
+    left; in seconds, not 30."""
     import spcopyro.figures.plotting as plotting
 
     plot_semantic_map = plotting.plot_semantic_map
@@ -210,7 +239,7 @@ def test_a_fit_stopped_while_it_waits_for_the_child_ends_the_child_first(
     children = _recording_children(monkeypatch)
     monkeypatch.setattr(plotting, "plot_semantic_map", semantic_map)
     monkeypatch.setattr(plotting, "plot_trace", sleeping_trace)
-    _split_figures(monkeypatch, ())
+    _split_figures(monkeypatch, (0,))  # the fit draws the semantic map
     out = tmp_path / "fit"
     began = time.monotonic()
     try:
@@ -305,7 +334,7 @@ def test_a_signal_to_the_child_at_the_fork_does_not_let_it_go_on_as_the_fit(
     expected = _said(tmp_path / "here", fork=False)
     _signal_at_fork(monkeypatch, signum, in_child=True)
     children = _recording_children(monkeypatch)
-    _split_figures(monkeypatch, ())  # the child takes every shared figure
+    _split_figures(monkeypatch, ())  # the child takes every figure
     here, escaped = os.getpid(), tmp_path / "escaped"
     try:
         with sigterm_as_interrupt(), _deadline(30):  # fit's handlers, as in a fit

@@ -71,6 +71,7 @@ def test_a_house_of_words_only_draws_no_images_entry(tmp_path):
 
 def test_the_trace_of_one_of_several_chains_says_which(tmp_path, monkeypatch):
     """`fit --chains K` drew the kept chain's trace with no word that the K - 1 others exist."""
+    import contextlib
     import dataclasses
 
     from hand_results import two_rooms
@@ -88,7 +89,13 @@ def test_the_trace_of_one_of_several_chains_says_which(tmp_path, monkeypatch):
     from spcopyro.synthetic import HouseSpec, write_synthetic
 
     seen = {}
-    monkeypatch.setattr(fit_cli, "write_figures", lambda *a, **k: seen.update(k))
+
+    @contextlib.contextmanager
+    def recorded(*args, **kwargs):  # the figures drawn while the rest is written: none here
+        seen.update(kwargs)
+        yield
+
+    monkeypatch.setattr(fit_cli, "figures_drawn", recorded)
     data = write_synthetic(tmp_path, seed=1, spec=HouseSpec(height=40, width=50, num_rooms=3))
     argv = ["fit", str(data), "--out", str(tmp_path / "f"), "--sweeps", "5", "--chains", "2",
             "--refine", "never"]  # fmt: skip

@@ -279,9 +279,9 @@ def test_figures_shared_with_a_forked_child_are_each_taken_once():
 
 
 def test_figures_drawn_in_a_forked_child_are_the_files_drawn_here(tmp_path, monkeypatch):
-    """write_figures shares the trace, house, uncertainty and agreement maps with a forked child
-    where forking is safe: the PNGs are byte for byte those drawn in one process; a child that
-    dies leaves its figures to the parent, which draws them."""
+    """write_figures shares its figures (the semantic map, trace, house, uncertainty and
+    agreement maps) with a forked child where forking is safe: the PNGs are byte for byte those
+    drawn in one process; a child that dies leaves its figures to the parent, which draws them."""
     import pytest
 
     from spcopyro.cli import fit_figures

@@ -5,16 +5,16 @@ A default fit's sweeps run in compiled kernels that release the GIL, one chain o
 the point estimate import (matplotlib, scipy's image and assignment modules: about a second of a
 fresh process) and draws ``house.png``, which needs the house only (again, of the map's own
 cells, while a refinement's chains run: :meth:`FigurePrefetch.redraw`). After the fit,
-:func:`write_figures` draws the figures that need the result, some of them in a child forked
-for them where forking is safe (two CPUs draw them in about half the time). While the thread
-works the interpreter's switch interval is shortened, so a sweep that ends waits at most that
-long for the GIL. The figures are those drawn without either, file for file (issue 25 item 1).
+:func:`figures_drawn` draws the figures that need the result, in a child forked for them where
+forking is safe, while the fit saves its result, then shares what is left with the child (two
+CPUs draw them in about half the time). While the thread works the interpreter's switch
+interval is shortened, so a sweep that ends waits at most that long for the GIL. The figures
+are those drawn without either, file for file (issue 25 item 1).
 """
 
 from __future__ import annotations
 
 import contextlib
-import itertools
 import json
 import os
 import sys
@@ -32,7 +32,7 @@ if TYPE_CHECKING:
     from spcopyro.data import House
     from spcopyro.results.result import SpCoResult
 
-__all__ = ["FigurePrefetch", "write_figures"]
+__all__ = ["FigurePrefetch", "figures_drawn", "write_figures"]
 
 PREFETCH_SWITCH_INTERVAL = 0.0005
 """Seconds: :func:`sys.setswitchinterval` while :class:`FigurePrefetch` works (Python's default
@@ -173,26 +173,86 @@ def write_figures(
     kept: tuple[int, int] | None = None,
     said: list[str] | None = None,
 ) -> None:
-    """The fit's PNGs: semantic map, trace, house (unless ``prefetch`` drew it), and the
-    uncertainty and agreement maps of a result that has them (:mod:`spcopyro.figures.plotting`,
-    matplotlib's Agg canvas).
+    """The fit's PNGs (:func:`figures_drawn` around nothing)."""
+    with figures_drawn(result, house, out, uncertainty, prefetch, fork, kept, said):
+        pass
+
+
+@contextlib.contextmanager
+def figures_drawn(
+    result: SpCoResult,
+    house: House,
+    out: Path,
+    uncertainty: bool,
+    prefetch: FigurePrefetch | None = None,
+    fork: bool | None = None,
+    kept: tuple[int, int] | None = None,
+    said: list[str] | None = None,
+) -> Iterator[None]:
+    """The fit's PNGs, drawn while the block writes the fit's other outputs: semantic map,
+    trace, house (unless ``prefetch`` drew it), and the uncertainty and agreement maps of a
+    result that has them (:mod:`spcopyro.figures.plotting`, matplotlib's Agg canvas).
 
     ``fork`` (None: where :func:`~spcopyro._util.forking.fork_refusal` allows it, without torch):
-    a child forked from this process draws the others while this one draws the semantic map,
-    the largest (0.3-0.6 s against 0.1-0.3 s each), and both then take what is left, one figure
+    a child forked at the block's start draws them, the semantic map first (the largest:
+    0.3-0.6 s against 0.1-0.3 s each), while this process runs the block (``spcopyro fit``
+    saves its result there, 0.1 s of room2ldk4's fit); then both take what is left, one figure
     at a time (:class:`_Claims`), so the two CPUs share the work however the figures' sizes
     fall; the same files, byte for byte. The figures a failed child took are drawn here again
-    (their error, if any, raised). An interrupt or error here ends the child before it is
-    raised (:meth:`_Child.stop`): ``spcopyro fit`` then discards the folder it draws into.
-    ``kept`` = (k, K): ``result`` is chain k of K, the one kept (``trace.png`` says so: it
-    draws that chain's trace only).
+    (their error, if any, raised). An interrupt or error here, in the block or after it, ends
+    the child before it is raised (:meth:`_Child.stop`): ``spcopyro fit`` then discards the
+    folder it draws into. Without a fork, the figures are drawn here after the block. ``kept`` =
+    (k, K): ``result`` is chain k of K, the one kept (``trace.png`` says so: it draws that
+    chain's trace only).
 
     ``said``: the list that a :func:`~spcopyro.cli.fit_warnings.recorded_warnings` block in
-    effect fills (the fit's, for ``config.json``). The warnings of the figures drawn here go
-    into it as they are given; those of the child's (printed there) come back when it ends, and
-    the figures' warnings are then put in the figures' order (semantic map, trace, house,
-    uncertainty, agreement), as drawn in one process, whichever process drew which."""
-    house_drawn = prefetch is not None and prefetch.join()
+    effect fills (the fit's, for ``config.json``). What the block says comes first; the
+    warnings of the figures drawn here go into it as they are given; those of the child's
+    (printed there) come back when it ends, and the figures' warnings are then put in the
+    figures' order (semantic map, trace, house, uncertainty, agreement), as drawn in one
+    process, whichever process drew which."""
+    # a fork waits for the prefetch thread first (no other thread may run at a fork); else the
+    # block runs while it finishes (a short fit's house.png)
+    early = fork is not False and sys.platform.startswith("linux")
+    house_drawn = early and prefetch is not None and prefetch.join()
+    if not (early and _may_fork(fork)):
+        yield
+        if not early:
+            house_drawn = prefetch is not None and prefetch.join()
+        _draw(_figures(result, house, out, uncertainty, kept, house_drawn))  # in order
+        return
+    figures = _figures(result, house, out, uncertainty, kept, house_drawn)
+    claims = _Claims(len(figures))
+    try:
+        child = _draw_in_child(figures, claims)
+        mine: list[int] = []  # the figures drawn here
+        try:
+            yield  # the fit's other outputs, while the child draws
+            heard = _Heard(said)  # after what the block said
+            _draw(claims.figures(figures, mine), heard)
+            with timed("figure child wait"):
+                told = child.wait()
+        except BaseException:  # Ctrl-C, SIGTERM, an error: nothing more drawn into the folder
+            child.stop()
+            raise
+    finally:
+        claims.close()
+    if child.exitcode != 0:  # the child's figures drawn here, so that none is lost
+        _draw([figure for k, figure in enumerate(figures) if k not in mine], heard)
+    else:
+        heard.by_figure.update(json.loads(told))
+    heard.in_figure_order([name for name, _ in figures])
+
+
+def _figures(
+    result: SpCoResult,
+    house: House,
+    out: Path,
+    uncertainty: bool,
+    kept: tuple[int, int] | None,
+    house_drawn: bool,
+) -> list[Figure]:
+    """The figures :func:`figures_drawn` draws, in their order."""
     with timed("figure imports"):
         from spcopyro.figures.plotting import (
             plot_agreement,
@@ -203,39 +263,18 @@ def write_figures(
         )
 
     observations = house.observations
-    first: Figure = (
-        "semantic_map",
-        lambda: plot_semantic_map(result, out / "semantic_map.png", observations=observations),
-    )
-    shared: list[Figure] = [("trace", lambda: plot_trace(result, out / "trace.png", kept))]
+    figures: list[Figure] = [
+        ("semantic_map",
+         lambda: plot_semantic_map(result, out / "semantic_map.png", observations=observations)),
+        ("trace", lambda: plot_trace(result, out / "trace.png", kept)),
+    ]  # fmt: skip
     if not house_drawn:
-        shared.append(("house", lambda: plot_house(house, out / "house.png")))
+        figures.append(("house", lambda: plot_house(house, out / "house.png")))
     if uncertainty:
-        shared.append(("uncertainty", lambda: plot_uncertainty(result, out / "uncertainty.png")))
+        figures.append(("uncertainty", lambda: plot_uncertainty(result, out / "uncertainty.png")))
     if result.agreement is not None:
-        shared.append(("agreement", lambda: plot_agreement(result, out / "agreement.png")))
-    if not _may_fork(fork):
-        _draw([first, *shared])  # their warnings into said in the figures' order
-        return
-    heard = _Heard(said)
-    claims = _Claims(len(shared))
-    try:
-        child = _draw_in_child(shared, claims)
-        mine: list[int] = []  # the shared figures drawn here
-        try:
-            _draw(itertools.chain([first], claims.figures(shared, mine)), heard)
-            with timed("figure child wait"):
-                told = child.wait()
-        except BaseException:  # Ctrl-C, SIGTERM, an error: nothing more drawn into the folder
-            child.stop()
-            raise
-    finally:
-        claims.close()
-    if child.exitcode != 0:  # the child's figures drawn here, so that none is lost
-        _draw([figure for k, figure in enumerate(shared) if k not in mine], heard)
-    else:
-        heard.by_figure.update(json.loads(told))
-    heard.in_figure_order([name for name, _ in (first, *shared)])
+        figures.append(("agreement", lambda: plot_agreement(result, out / "agreement.png")))
+    return figures
 
 
 Figure = tuple[str, Callable[[], None]]

@@ -7,6 +7,7 @@ found printed, then the folder moved to OUT (:func:`write_outputs`).
 
 from __future__ import annotations
 
+import contextlib
 import dataclasses
 import json
 import math
@@ -21,7 +22,7 @@ from spcopyro._util.progress import setup_bar
 from spcopyro._util.timings import timed
 from spcopyro.cli.common import pace
 from spcopyro.cli.concept_listing import next_step, print_concepts
-from spcopyro.cli.fit_figures import write_figures
+from spcopyro.cli.fit_figures import figures_drawn
 from spcopyro.cli.fit_resume import again_command
 from spcopyro.cli.fit_summary import estimate_line, objective_line
 from spcopyro.cli.fit_warnings import write_config
@@ -75,49 +76,57 @@ def write_outputs(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) 
     # On a large map each takes seconds (2.9 million cells: result.npz compresses the [N, L]
     # marginals 5 s, uncertainty 2 s, the figures 6 s): a bar as the setup steps have
     bar = setup_bar(result.grid.num_free, 3, "writing the outputs", "step")
-    out = result.save(staged.path, with_config=False)  # config.json last, with the warnings
-    robot_map = house.grid.coarsened_from  # a coarse fit's map: navigate plans on it
-    if robot_map is not None:
-        save_map(robot_map, out / ROBOT_MAP_FILE)
-    bar.update()
-    phases.mark("save")
-    if chain_results is not None and chains > 1:
-        best_values = [r.best_objective for r in chain_results]
-        objective = result.trace.objective_name  # "log joint", or a variational objective
-        sampled = objective == "log joint"  # Gibbs chains, vi-gibbs's too; else q's objective
-        # "best_log_joint" of sampled chains; a variational fit's "final_elbo" (its q's)
-        values_key = "best_log_joint" if sampled else "final_" + objective.lower().replace(" ", "_")
-        report = {"seeds": [args.seed + k for k in range(chains)], "best_chain": kept,
-                  values_key: best_values, "objective": objective}  # fmt: skip
-        (out / "chains.json").write_text(json.dumps(report, indent=1) + "\n")
-        run = ("refined " if job.refined else "") + ("chain" if sampled else "fit")
-        value = "best" if sampled else "final"  # a variational fit reports q
-        print(f"best of {chains} {run}s: kept {run} {kept} (seed {args.seed + kept}), {value} "
-              f"{objective}s {', '.join(f'{v:.1f}' for v in best_values)}")  # fmt: skip
-    sweeps_run = len(result.trace.objective)
-    if diagnostics is not None:
-        (out / "convergence.json").write_text(json.dumps(diagnostics.to_json(), indent=1) + "\n")
-        last = diagnostics.checks[-1]
-        state = "converged" if diagnostics.converged else "NOT converged (hit --max-sweeps)"
-        print(f"--sweeps auto: {chains} chains {state} after {diagnostics.sweeps} sweeps each "
-              f"(split R-hat: log joint {last.rhat_log_joint:.3f}, concepts "
-              f"{last.rhat_num_concepts:.3f}); kept chain {diagnostics.best_chain} "
-              f"(seed {diagnostics.seeds[diagnostics.best_chain]}), highest log joint"
-              f"{', the refinement started from it' if job.refined else ''}")  # fmt: skip
-    with timed("uncertainty"):
-        entropy = cell_entropy(result)
-        if entropy is not None:
-            np.save(out / "uncertainty.npy", free_cells_image(result, entropy))
-        if result.agreement is not None:
-            np.save(out / "agreement.npy", free_cells_image(result, result.agreement))
-    bar.update()
-    phases.mark("save")
+    # the figures drawn while the rest is written: in a child forked for them where it may be
+    # (figures_drawn), which starts with the semantic map while the result is saved here
+    figures: contextlib.AbstractContextManager[None] = contextlib.nullcontext()
     if prefetch is not None:  # matplotlib is imported only for the figures
         # trace.png draws the kept chain's trace only (--sweeps auto's: the best of its chains)
         shown = kept if chain_results is not None or diagnostics is None else diagnostics.best_chain
         # said: the child's figures' warnings too, in the figures' order (config.json's)
-        write_figures(result, house, out, uncertainty=entropy is not None, prefetch=prefetch,
-                      kept=(shown, chains), said=job.said)  # fmt: skip
+        figures = figures_drawn(result, house, staged.path, result.marginals is not None,
+                                prefetch=prefetch, kept=(shown, chains), said=job.said)  # fmt: skip
+    with figures:
+        out = result.save(staged.path, with_config=False)  # config.json last, with the warnings
+        robot_map = house.grid.coarsened_from  # a coarse fit's map: navigate plans on it
+        if robot_map is not None:
+            save_map(robot_map, out / ROBOT_MAP_FILE)
+        bar.update()
+        phases.mark("save")
+        if chain_results is not None and chains > 1:
+            best_values = [r.best_objective for r in chain_results]
+            objective = result.trace.objective_name  # "log joint", or a variational objective
+            sampled = objective == "log joint"  # Gibbs chains, vi-gibbs's too; else q's objective
+            # "best_log_joint" of sampled chains; a variational fit's "final_elbo" (its q's)
+            values_key = (
+                "best_log_joint" if sampled else "final_" + objective.lower().replace(" ", "_")
+            )
+            report = {"seeds": [args.seed + k for k in range(chains)], "best_chain": kept,
+                      values_key: best_values, "objective": objective}  # fmt: skip
+            (out / "chains.json").write_text(json.dumps(report, indent=1) + "\n")
+            run = ("refined " if job.refined else "") + ("chain" if sampled else "fit")
+            value = "best" if sampled else "final"  # a variational fit reports q
+            print(f"best of {chains} {run}s: kept {run} {kept} (seed {args.seed + kept}), {value} "
+                  f"{objective}s {', '.join(f'{v:.1f}' for v in best_values)}")  # fmt: skip
+        sweeps_run = len(result.trace.objective)
+        if diagnostics is not None:
+            (out / "convergence.json").write_text(
+                json.dumps(diagnostics.to_json(), indent=1) + "\n"
+            )
+            last = diagnostics.checks[-1]
+            state = "converged" if diagnostics.converged else "NOT converged (hit --max-sweeps)"
+            print(f"--sweeps auto: {chains} chains {state} after {diagnostics.sweeps} sweeps each "
+                  f"(split R-hat: log joint {last.rhat_log_joint:.3f}, concepts "
+                  f"{last.rhat_num_concepts:.3f}); kept chain {diagnostics.best_chain} "
+                  f"(seed {diagnostics.seeds[diagnostics.best_chain]}), highest log joint"
+                  f"{', the refinement started from it' if job.refined else ''}")  # fmt: skip
+        with timed("uncertainty"):
+            entropy = cell_entropy(result)
+            if entropy is not None:
+                np.save(out / "uncertainty.npy", free_cells_image(result, entropy))
+            if result.agreement is not None:
+                np.save(out / "agreement.npy", free_cells_image(result, result.agreement))
+        bar.update()
+        phases.mark("save")
     bar.update()
     bar.close()
     phases.mark("figures")
