@@ -183,29 +183,37 @@ def test_a_figure_that_warns_in_the_child_is_in_config_json(tmp_path, monkeypatc
     assert forked == alone
 
 
-def test_the_child_draws_the_semantic_map_while_the_fit_saves_its_result(tmp_path, monkeypatch):
-    """``spcopyro fit`` forks the figures' child before it saves its result, and the child
-    starts with the semantic map: here the save waits until semantic_map.png is in the staging
-    folder (the fit, waiting, takes no figure meanwhile). Before, the figures were drawn once
-    the result was saved, so the save waited in vain (about 0.1 s of room2ldk4's fit that the
-    figures now overlap)."""
+@pytest.mark.parametrize("working", [False, True], ids=["thread ended", "thread at work"])
+def test_the_child_draws_the_semantic_map_while_the_fit_saves_its_result(
+    tmp_path, monkeypatch, working
+):
+    """``spcopyro fit`` whose figures' thread has ended (FigurePrefetch.working, here as told)
+    forks the figures' child before it saves its result, and the child starts with the
+    semantic map: here the save waits until semantic_map.png is in the staging folder (the fit,
+    waiting, takes no figure meanwhile). Before, the figures were drawn once the result was
+    saved, so the save waited in vain (about 0.1 s of room2ldk4's fit that the figures now
+    overlap). Where the thread is still at work (a short fit), the save runs first, while it
+    finishes: no figure is drawn before it, and all are after."""
     from spcopyro.results.result import SpCoResult
 
     save = SpCoResult.save
-    drawn_first: list[bool] = []
+    at_save: list[tuple[int, bool]] = []  # children forked, semantic_map.png there
 
     def save_once_the_map_is_drawn(self, out_dir, **kwargs):
         png = Path(out_dir) / "semantic_map.png"  # written whole or not at all (replace_file)
-        deadline = time.monotonic() + 20
+        deadline = time.monotonic() + (0 if working else 20)
         while not png.exists() and time.monotonic() < deadline:
             time.sleep(0.01)
-        drawn_first.append(png.exists())
+        at_save.append((len(children), png.exists()))
         return save(self, out_dir, **kwargs)
 
+    children = _recording_children(monkeypatch)
+    monkeypatch.setattr(fit_figures.FigurePrefetch, "working", lambda self: working)
     monkeypatch.setattr(SpCoResult, "save", save_once_the_map_is_drawn)
     out = tmp_path / "fit"
     assert main(["fit", "--sweeps", "4", "--out", str(out)]) == 0
-    assert drawn_first == [True]
+    assert at_save == [(0, False) if working else (1, True)]
+    assert len(children) == 1
     assert {"semantic_map.png", "trace.png", "house.png", "uncertainty.png"} <= {
         path.name for path in out.iterdir()
     }

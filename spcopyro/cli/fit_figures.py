@@ -140,6 +140,10 @@ class FigurePrefetch:
                 self._newer, self.house_drawn = None, False
                 self._end()
 
+    def working(self) -> bool:
+        """Whether its thread is at work now (started, not ended, not abandoned)."""
+        return self._started and self._thread.is_alive() and not self._abandoned.is_set()
+
     def join(self) -> bool:
         """Wait for the thread (not once abandoned); whether ``house.png`` was drawn."""
         if self._started and self._thread.is_alive() and not self._abandoned.is_set():
@@ -198,12 +202,14 @@ def figures_drawn(
     0.3-0.6 s against 0.1-0.3 s each), while this process runs the block (``spcopyro fit``
     saves its result there, 0.1 s of room2ldk4's fit); then both take what is left, one figure
     at a time (:class:`_Claims`), so the two CPUs share the work however the figures' sizes
-    fall; the same files, byte for byte. The figures a failed child took are drawn here again
-    (their error, if any, raised). An interrupt or error here, in the block or after it, ends
-    the child before it is raised (:meth:`_Child.stop`): ``spcopyro fit`` then discards the
-    folder it draws into. Without a fork, the figures are drawn here after the block. ``kept`` =
-    (k, K): ``result`` is chain k of K, the one kept (``trace.png`` says so: it draws that
-    chain's trace only).
+    fall; the same files, byte for byte. Where ``prefetch``'s thread is still at work (a short
+    fit), the block runs first, while it finishes, and the child is forked after it (else the
+    block would wait for the thread: a fit of one sweep on room2ldk4 took 0.07 s longer). The
+    figures a failed child took are drawn here again (their error, if any, raised). An
+    interrupt or error here, in the block or after it, ends the child before it is raised
+    (:meth:`_Child.stop`): ``spcopyro fit`` then discards the folder it draws into. Without a
+    fork, the figures are drawn here after the block. ``kept`` = (k, K): ``result`` is chain k
+    of K, the one kept (``trace.png`` says so: it draws that chain's trace only).
 
     ``said``: the list that a :func:`~spcopyro.cli.fit_warnings.recorded_warnings` block in
     effect fills (the fit's, for ``config.json``). What the block says comes first; the
@@ -211,23 +217,25 @@ def figures_drawn(
     (printed there) come back when it ends, and the figures' warnings are then put in the
     figures' order (semantic map, trace, house, uncertainty, agreement), as drawn in one
     process, whichever process drew which."""
-    # a fork waits for the prefetch thread first (no other thread may run at a fork); else the
-    # block runs while it finishes (a short fit's house.png)
-    early = fork is not False and sys.platform.startswith("linux")
-    house_drawn = early and prefetch is not None and prefetch.join()
-    if not (early and _may_fork(fork)):
+    # a prefetch thread still at work (a short fit: its imports, house.png): the block runs while
+    # it finishes; else the child is forked first (no other thread may run at a fork)
+    late = prefetch is not None and prefetch.working()
+    if late:
         yield
-        if not early:
-            house_drawn = prefetch is not None and prefetch.join()
-        _draw(_figures(result, house, out, uncertainty, kept, house_drawn))  # in order
-        return
+    house_drawn = prefetch is not None and prefetch.join()
     figures = _figures(result, house, out, uncertainty, kept, house_drawn)
+    if not _may_fork(fork):
+        if not late:
+            yield
+        _draw(figures)  # in order
+        return
     claims = _Claims(len(figures))
     try:
         child = _draw_in_child(figures, claims)
         mine: list[int] = []  # the figures drawn here
         try:
-            yield  # the fit's other outputs, while the child draws
+            if not late:
+                yield  # the fit's other outputs, while the child draws
             heard = _Heard(said)  # after what the block said
             _draw(claims.figures(figures, mine), heard)
             with timed("figure child wait"):
