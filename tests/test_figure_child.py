@@ -382,3 +382,22 @@ def test_a_signal_to_the_fit_at_the_fork_stops_the_child(tmp_path, monkeypatch, 
             with contextlib.suppress(OSError):
                 os.kill(pid, signal.SIGKILL)
                 os.waitpid(pid, 0)
+
+
+def test_the_entropy_is_computed_before_the_figures_child_is_forked(tmp_path, monkeypatch):
+    """The uncertainty map's [N, L] entropy pass (2 s at 2.9 million cells) is computed once,
+    before the figures' child is forked, so the child's uncertainty.png inherits it. Since
+    5ab0c44 forked the child before the save, the entropy was computed after the fork, and
+    whichever process drew uncertainty.png computed it again."""
+    import spcopyro.cli.fit_write as fit_write
+
+    kept_at_fork: list[bool] = []
+    drawn = fit_write.figures_drawn
+
+    def recorded(result, *args, **kwargs):
+        kept_at_fork.append(any("entropy" in str(key) for key in result._computed))
+        return drawn(result, *args, **kwargs)
+
+    monkeypatch.setattr(fit_write, "figures_drawn", recorded)
+    assert main(["fit", "--sweeps", "4", "--out", str(tmp_path / "fit")]) == 0
+    assert kept_at_fork == [True]

@@ -79,11 +79,13 @@ def write_outputs(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) 
     # the figures drawn while the rest is written: in a child forked for them where it may be
     # (figures_drawn), which starts with the semantic map while the result is saved here
     figures: contextlib.AbstractContextManager[None] = contextlib.nullcontext()
+    with timed("uncertainty"):  # before the fork: the child's uncertainty.png inherits it
+        entropy = cell_entropy(result)
     if prefetch is not None:  # matplotlib is imported only for the figures
         # trace.png draws the kept chain's trace only (--sweeps auto's: the best of its chains)
         shown = kept if chain_results is not None or diagnostics is None else diagnostics.best_chain
         # said: the child's figures' warnings too, in the figures' order (config.json's)
-        figures = figures_drawn(result, house, staged.path, result.marginals is not None,
+        figures = figures_drawn(result, house, staged.path, entropy is not None,
                                 prefetch=prefetch, kept=(shown, chains), said=job.said)  # fmt: skip
     with figures:
         out = result.save(staged.path, with_config=False)  # config.json last, with the warnings
@@ -120,7 +122,6 @@ def write_outputs(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) 
                   f"(seed {diagnostics.seeds[diagnostics.best_chain]}), highest log joint"
                   f"{', the refinement started from it' if job.refined else ''}")  # fmt: skip
         with timed("uncertainty"):
-            entropy = cell_entropy(result)
             if entropy is not None:
                 np.save(out / "uncertainty.npy", free_cells_image(result, entropy))
             if result.agreement is not None:
