@@ -177,7 +177,8 @@ def write_figures(
     kept: tuple[int, int] | None = None,
     said: list[str] | None = None,
 ) -> None:
-    """The fit's PNGs (:func:`figures_drawn` around nothing)."""
+    """The fit's PNGs (:func:`figures_drawn` around nothing), for a caller with nothing to
+    write beside them (``fit`` writes its result inside :func:`figures_drawn`)."""
     with figures_drawn(result, house, out, uncertainty, prefetch, fork, kept, said):
         pass
 

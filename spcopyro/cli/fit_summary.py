@@ -212,7 +212,7 @@ def estimate_line(result: SpCoResult, estimate: str, figures: bool) -> str:
     its expected loss, the best single sample's, and, where speck cells were joined to other
     concepts (:mod:`spcopyro.results.speck_join`), how many and the loss before, e.g.
     ``point estimate   vi (expected variation of information 0.1558, best single sample 0.201;
-    6 speck cells joined to other concepts: +0.00079 from 0.155, vi-specks keeps them);
+    6 speck cells joined to other concepts: +0.00078 from 0.155, vi-specks keeps them);
     agreement.png``."""
     options = result.inference
     estimate = str(options.get("point_estimate", estimate))  # a refit's own

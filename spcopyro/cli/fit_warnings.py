@@ -14,7 +14,7 @@ and a count of the rest), as a list of strings (empty when the fit gave none).
 A chain run in a forked worker process (``--chains K`` on Linux,
 :mod:`spcopyro.gibbs.chain_processes`) sends its warnings to the fit's process, which prints
 and keeps them as it does a chain's on a thread. The figures drawn in the child that ``fit``
-forks for them (:func:`spcopyro.cli.fit_figures.write_figures`) print their warnings there and
+forks for them (:func:`spcopyro.cli.fit_figures.figures_drawn`) print their warnings there and
 send them back as it ends; the figures' warnings are kept in the figures' order, as drawn in one
 process, whichever process drew which.
 """

@@ -358,7 +358,8 @@ class PointEstimate(NamedTuple):
     specks: int = 0
     """How many speck clusters those cells made up."""
     loss_with_specks: float | None = None
-    """The search's expected loss before the joins; None where specks were kept."""
+    """The search's expected loss before the joins (equal to ``expected_loss`` where nothing
+    was joined); None where no ``cell_words`` were given (the search's estimate, specks kept)."""
 
 
 def point_estimate(
