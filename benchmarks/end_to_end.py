@@ -15,8 +15,10 @@ into
 * **post-processing** (what issue 25 item 1 holds to the time of 500 sweeps): the point
   estimate over the kept label maps, the agreement map, the label frequencies, the posterior
   means and the result (``result``), the uncertainty and agreement maps written, and the
-  figures (the ``figures`` phase: what is left of their imports, each figure, and the wait for
-  the figures' prefetch thread, if it had not finished with the sweeps);
+  figures (the ``figures`` phase: what is left of their imports, each figure the fit's own
+  process draws -- those of the child forked for them, the semantic map first, are not in its
+  timings -- the wait for that child, and for the figures' prefetch thread, if it had not
+  finished with the sweeps);
 * **outputs and exit**: writing the result's files (``save`` less the maps), the printed report,
   moving OUT into place, and the interpreter's exit.
 

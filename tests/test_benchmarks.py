@@ -402,7 +402,9 @@ def test_end_to_end_benchmark_quick(tmp_path):
     assert all(fit[name] > 0.0 for name in parts)
     assert math.isclose(sum(fit[name] for name in parts), fit["wall"], rel_tol=1e-6)
     assert {"semantic_map.png", "trace.png", "house.png", "agreement.png"} <= set(fit["pngs"])
-    assert fit["post_parts"]["point_estimate"] > 0.0 and fit["figures"]["semantic_map"] > 0.0
+    # the figures phase: since 5ab0c44 the semantic map is drawn by the figures' child, whose
+    # seconds are not in the fit's timings; the phase holds the fit's share and its wait
+    assert fit["post_parts"]["point_estimate"] > 0.0 and fit["post_parts"]["figures"] > 0.0
     assert record["startup"]["commands"][1]["command"] == "--help"
     # the start-up table names the house it used: the embedded one, whether the dataset is there
     assert record["startup"]["house"] == "embedded synthetic default house"

@@ -38,7 +38,7 @@ Not re-exported (import them from their module, ``from spcopyro.maps.grid import
   ``trinary_pixels``.
 * :mod:`~spcopyro.maps.map_yaml`: ``MAX_YAW_NOISE``, ``PLAUSIBLE_RESOLUTION``,
   ``read_map_yaml``.
-* :mod:`~spcopyro.maps.palette`: ``delta_e``, ``delta_e94``, ``srgb_to_lab``.
+* :mod:`~spcopyro.maps.palette`: ``concept_palette``, ``delta_e``, ``delta_e94``, ``srgb_to_lab``.
 """
 
 from spcopyro.maps.filter_mask import FilterMask, load_filter_mask, save_filter_mask
