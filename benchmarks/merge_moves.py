@@ -9,7 +9,10 @@ with the merge move timed separately. Reported per run:
 
 * concepts holding at least 1% of the free cells, in the last state and in the reported map
   (the highest-log-joint state visited, and the VI / Binder point estimates of
-  :mod:`spcopyro.results.point_estimate` over ~50 label maps of the second half);
+  :mod:`spcopyro.results.point_estimate` over ~50 label maps of the second half, their speck
+  concepts joined to others as ``spcopyro fit``'s ``vi`` and ``binder`` join them: told by the
+  words heard at each cell, :func:`spcopyro.results.posterior_means.words_per_cell`; the cells
+  and specks joined are reported too);
 * the adjusted Rand index of each of those maps against the ground truth (where the house has
   one);
 * seconds per sweep (whole step), seconds per split-merge move, and the moves proposed and
@@ -58,6 +61,7 @@ from spcopyro.gibbs.state import make_sweep_plan
 from spcopyro.likelihood import log_joint_constant
 from spcopyro.metrics import adjusted_rand_index
 from spcopyro.results.point_estimate import point_estimate
+from spcopyro.results.posterior_means import words_per_cell
 from spcopyro.synthetic import make_house
 
 SCRIPT_DIR = Path(__file__).resolve().parent
@@ -119,10 +123,15 @@ def run_chain(
     seconds = time.perf_counter() - start
     samples_array = np.stack(kept)
     maps = {"last": state.labels.numpy(), "map-visited": best_labels}
+    cell_words = words_per_cell(data)  # [N] as fit's vi and binder: which clusters are specks
+    joined = {}
     for loss in ("vi", "binder"):
         tick = time.perf_counter()
-        maps[loss] = point_estimate(samples_array, loss, max_clusters=config.num_concepts).labels
+        found = point_estimate(samples_array, loss, max_clusters=config.num_concepts,
+                               cell_words=cell_words)  # fmt: skip
+        maps[loss] = found.labels
         maps[f"{loss}_seconds"] = time.perf_counter() - tick
+        joined[loss] = {"cells": found.speck_cells, "specks": found.specks}
     proposed = sum(v[0] for v in moves.values())
     return {
         "house": house.name,
@@ -136,6 +145,7 @@ def run_chain(
         "concepts_1pct": {k: _big_concepts(v) for k, v in maps.items() if "seconds" not in k},
         "ari": {k: _ari(house, v) for k, v in maps.items() if "seconds" not in k},
         "estimate_seconds": {k: maps[f"{k}_seconds"] for k in ("vi", "binder")},
+        "specks_joined": joined,
         "seconds_per_sweep": seconds / sweeps,
         "seconds_per_merge_move": merge_seconds / proposed if proposed else None,
         "moves": {k: {"proposed": v[0], "accepted": v[1]} for k, v in moves.items()},

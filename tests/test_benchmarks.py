@@ -773,6 +773,39 @@ def test_merge_moves_warms_up_before_the_timed_chains(script, tmp_path, keep_tor
     assert calls == [(0.0, warm), (0.0, 12)]
 
 
+def test_merge_moves_estimates_join_specks_as_fit_does(script, keep_torch_threads):
+    """The VI / Binder estimates are those ``spcopyro fit`` reports: its specks joined to other
+    clusters, told by the words heard at each cell (``words_per_cell``, as fit's
+    ``with_posterior_means`` passes). The benchmark called the raw point estimate without them,
+    so its estimates kept the speck concepts that fit's ``vi`` joins."""
+    import numpy as np
+
+    from spcopyro.config import preset
+    from spcopyro.fit.house import prepare_model_data
+    from spcopyro.results.posterior_means import words_per_cell
+    from spcopyro.synthetic import make_house
+
+    merge_moves = script("merge_moves")
+    house = make_house(seed=0)
+    expected = words_per_cell(prepare_model_data(house, preset("paper-dp"))[1])  # [N]
+    calls = []
+    original = merge_moves.point_estimate
+
+    def recording(samples, loss, **kwargs):
+        calls.append((loss, kwargs.get("cell_words")))
+        return original(samples, loss, **kwargs)
+
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setattr(merge_moves, "point_estimate", recording)
+        row = merge_moves.run_chain(house, "paper-dp", 0.0, 4, 0, 2, quiet=True)
+    assert [loss for loss, _ in calls] == ["vi", "binder"]
+    for _, cell_words in calls:
+        assert cell_words is not None
+        np.testing.assert_array_equal(cell_words, expected)
+    assert set(row["specks_joined"]) == {"vi", "binder"}
+    assert all(v["cells"] >= v["specks"] >= 0 for v in row["specks_joined"].values())
+
+
 def test_study_tables_name_the_cells_and_columns_that_differ(script):
     """study_order.py judged 'same numbers' by the whole tables and once said False with no
     word of where; the timing columns of observations-off runs were compared too."""
