@@ -1,5 +1,5 @@
 """The child that ``spcopyro fit`` forks to draw some of its figures
-(:func:`spcopyro.cli.fit_figures.write_figures`): its warnings reach the fit's list
+(:func:`spcopyro.cli.fit_figures.figures_drawn`): its warnings reach the fit's list
 (``config.json``'s) in the figures' order, as drawn in one process; a fit stopped while it waits
 for the child ends the child before the staging folder is discarded; and a child's warnings
 larger than a pipe holds do not hang the fit.
@@ -43,7 +43,7 @@ class Hung(Exception):
 @contextlib.contextmanager
 def _deadline(seconds: int):
     """:class:`Hung` raised in the main thread after ``seconds`` (no thread: a thread would keep
-    write_figures from forking)."""
+    figures_drawn from forking)."""
 
     def expire(signum, frame):
         raise Hung(f"not done in {seconds} s")
@@ -78,7 +78,7 @@ def _split_figures(monkeypatch, here: tuple[int, ...]) -> None:
 
 
 def _warning_figures(monkeypatch, extra: dict[str, int] | None = None) -> None:
-    """Every figure of write_figures a stub that gives a logger warning and a Python warning
+    """Every figure of figures_drawn a stub that gives a logger warning and a Python warning
     (``extra[name]`` more logger warnings of 100 characters) and writes its pid as the PNG."""
     import spcopyro.figures.plotting as plotting
 
@@ -99,7 +99,7 @@ def _warning_figures(monkeypatch, extra: dict[str, int] | None = None) -> None:
 
 
 def _said(out: Path, fork: bool | None) -> list[str]:
-    """The warnings a fit's recording block keeps while write_figures draws the stubs."""
+    """The warnings a fit's recording block keeps while figures_drawn draws the stubs."""
     result = SimpleNamespace(agreement=object())
     house = SimpleNamespace(observations=None)
     out.mkdir()
@@ -107,7 +107,8 @@ def _said(out: Path, fork: bool | None) -> list[str]:
         warnings.simplefilter("always")  # each figure's, in both processes
         warnings.showwarning = lambda *args, **kwargs: None  # kept below, not shown
         with recorded_warnings() as said:
-            fit_figures.write_figures(result, house, out, True, fork=fork, said=said)  # type: ignore[arg-type]
+            with fit_figures.figures_drawn(result, house, out, True, fork=fork, said=said):  # type: ignore[arg-type]
+                pass
     return said
 
 
@@ -363,7 +364,7 @@ def test_a_signal_to_the_child_at_the_fork_does_not_let_it_go_on_as_the_fit(
 @SIGNALS
 def test_a_signal_to_the_fit_at_the_fork_stops_the_child(tmp_path, monkeypatch, signum):
     """A signal that reaches the fit while it forks the child raises once the child is known,
-    which is stopped (reaped) before the interrupt leaves write_figures. Before, raised in the
+    which is stopped (reaped) before the interrupt leaves figures_drawn. Before, raised in the
     middle of multiprocessing's start, it left the child unstopped, drawing into the folder the
     fit then discards."""
     from spcopyro._util.interrupts import sigterm_as_interrupt

@@ -279,13 +279,13 @@ def test_figures_shared_with_a_forked_child_are_each_taken_once():
 
 
 def test_figures_drawn_in_a_forked_child_are_the_files_drawn_here(tmp_path, monkeypatch):
-    """write_figures shares its figures (the semantic map, trace, house, uncertainty and
+    """figures_drawn shares its figures (the semantic map, trace, house, uncertainty and
     agreement maps) with a forked child where forking is safe: the PNGs are byte for byte those
     drawn in one process; a child that dies leaves its figures to the parent, which draws them."""
     import pytest
 
     from spcopyro.cli import fit_figures
-    from spcopyro.cli.fit_figures import write_figures
+    from spcopyro.cli.fit_figures import figures_drawn
 
     if not sys.platform.startswith("linux"):
         pytest.skip("figures are drawn in a forked child on Linux only")
@@ -294,7 +294,8 @@ def test_figures_drawn_in_a_forked_child_are_the_files_drawn_here(tmp_path, monk
     folders = {name: tmp_path / name for name in ("here", "forked", "child died")}
     for folder in folders.values():
         folder.mkdir()
-    write_figures(result, house, folders["here"], uncertainty=True, fork=False)
+    with figures_drawn(result, house, folders["here"], uncertainty=True, fork=False):
+        pass
     children: list[object] = []
     start = fit_figures._draw_in_child
 
@@ -303,10 +304,12 @@ def test_figures_drawn_in_a_forked_child_are_the_files_drawn_here(tmp_path, monk
         return children[-1]
 
     monkeypatch.setattr(fit_figures, "_draw_in_child", recorded)
-    write_figures(result, house, folders["forked"], uncertainty=True)
+    with figures_drawn(result, house, folders["forked"], uncertainty=True):
+        pass
     assert len(children) == 1 and children[0].exitcode == 0  # drawn there
     monkeypatch.setattr(fit_figures, "_child_draws", lambda *args: os._exit(3))
-    write_figures(result, house, folders["child died"], uncertainty=True)
+    with figures_drawn(result, house, folders["child died"], uncertainty=True):
+        pass
     assert children[-1].exitcode == 3
     names = {"semantic_map.png", "trace.png", "house.png", "uncertainty.png", "agreement.png"}
     for name in names:

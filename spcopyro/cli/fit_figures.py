@@ -32,7 +32,7 @@ if TYPE_CHECKING:
     from spcopyro.data import House
     from spcopyro.results.result import SpCoResult
 
-__all__ = ["FigurePrefetch", "figures_drawn", "write_figures"]
+__all__ = ["FigurePrefetch", "figures_drawn"]
 
 PREFETCH_SWITCH_INTERVAL = 0.0005
 """Seconds: :func:`sys.setswitchinterval` while :class:`FigurePrefetch` works (Python's default
@@ -165,22 +165,6 @@ class FigurePrefetch:
         if self._started and self._thread.is_alive():
             self._thread.join(ABANDON_TIMEOUT if timeout is None else timeout)
         return not self._thread.is_alive()
-
-
-def write_figures(
-    result: SpCoResult,
-    house: House,
-    out: Path,
-    uncertainty: bool,
-    prefetch: FigurePrefetch | None = None,
-    fork: bool | None = None,
-    kept: tuple[int, int] | None = None,
-    said: list[str] | None = None,
-) -> None:
-    """The fit's PNGs (:func:`figures_drawn` around nothing), for a caller with nothing to
-    write beside them (``fit`` writes its result inside :func:`figures_drawn`)."""
-    with figures_drawn(result, house, out, uncertainty, prefetch, fork, kept, said):
-        pass
 
 
 @contextlib.contextmanager
