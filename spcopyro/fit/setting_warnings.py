@@ -11,7 +11,7 @@ samples (those about the Gibbs sampler are given to gibbs and vi-gibbs only).
 from __future__ import annotations
 
 from spcopyro._util.messages import setting
-from spcopyro.config import DataPreparation, SpCoConfig
+from spcopyro.config import HYPERPARAMETER_FIELDS, DataPreparation, SpCoConfig
 
 FREEZING_GAMMA = 10.0
 """gamma at and above which the sampler freezes: measured from random labels on the synthetic
@@ -20,7 +20,7 @@ house of seed 0 (3600 free cells, L = 120, 1000 sweeps), gamma 4 ended with 16 c
 vanishing after sweep 200 (106 with original-code): a domain wall moves only at a cost of about
 exp(-gamma) per flip, so the random start's patches stay."""
 CONCENTRATION_RANGE = (1e-3, 1e12)
-"""alpha, beta, chi and further concentrations outside this range make the log joint rounding
+"""alpha, chi, beta and further concentrations outside this range make the log joint rounding
 noise or dominated by empty concepts' parameters (see :func:`config_warnings`)."""
 
 
@@ -49,7 +49,7 @@ def config_warnings(config: SpCoConfig, sampled: bool = True) -> list[str]:
     * gamma below the Potts critical coupling ln(1 + sqrt(L)) (:func:`gamma_warning`): no
       regions form;
     * gamma >= :data:`FREEZING_GAMMA`: the sampler freezes in its starting patches;
-    * a concentration a (alpha, beta, chi or a further modality's) above 1e12: the log joint
+    * a concentration a (alpha, chi, beta or a further modality's) above 1e12: the log joint
       holds (a - 1) sum log phi, of order a L K log K, which float64 resolves to 2^-52 of
       itself; measured on a small house, the log joint jumped by 4e3 nats between sweeps at
       chi = 1e15 (300 at 1e12) and was meaningless (1e19 to 1e289) from 1e20 on;
@@ -77,7 +77,10 @@ def config_warnings(config: SpCoConfig, sampled: bool = True) -> list[str]:
             # no closed form for 8 neighbours: SpCoConfig.critical_gamma
         )
     low, high = CONCENTRATION_RANGE
-    concentrations = [("alpha", config.alpha), ("beta", config.beta), ("chi", config.chi)]
+    # the config's hyperparameter fields but gamma, which is the MRF's coupling, not a
+    # concentration (warned about above): alpha, chi, beta, then each further modality's
+    fields = [name for name in HYPERPARAMETER_FIELDS if name != "gamma"]
+    concentrations = [(name, getattr(config, name)) for name in fields]
     concentrations += [(f"concentration {n!r}", v) for n, v in config.concentrations]
     for name, value in concentrations:
         if value > high:
