@@ -292,6 +292,37 @@ def test_largest_share_counts_labelled_cells_only():
     assert np.isnan(largest_share(np.full(4, -1)))
 
 
+def test_top_words_list_none_for_a_fit_that_did_not_model_its_words():
+    """The ablation's and studies' word lists follow fit's rule (``listed_top_words``,
+    ``words_modelled``): a fit with ``use_words`` off lists no words (its w rows are the
+    prior's, every word tied; they listed three tied words in tie order, read as what the
+    concept means) and its place and filler shares are nan; a fit that modelled its words lists
+    them as before."""
+    import dataclasses
+    import math
+
+    from spcopyro.config import preset
+    from spcopyro.experiments.ablation import top_words
+    from spcopyro.experiments.ablation_report import _words_text
+    from spcopyro.fit.house import fit_house
+    from spcopyro.study.evaluate import _sentence_scores
+
+    house = make_house(seed=0, spec=HouseSpec(sentence_fraction=0.5))
+    settings = preset("original-code", gamma=3.0, num_concepts=6)
+    result = fit_house(house, settings, sweeps=3, progress=False)
+    words, share = top_words(result, house)
+    assert words and all(len(w) == 3 for w in words) and math.isfinite(share)
+    sentences = _sentence_scores(result)
+    assert all(len(w) == 3 for w in json.loads(sentences["concept_words"]))
+    unmodelled = dataclasses.replace(result, config=result.config.replace(use_words=False))
+    words, share = top_words(unmodelled, house)
+    assert words and all(w == [] for w in words) and math.isnan(share)
+    sentences = _sentence_scores(unmodelled)
+    listed = json.loads(sentences["concept_words"])
+    assert listed and all(w == [] for w in listed) and math.isnan(sentences["filler_top_share"])
+    assert _words_text([[], [], []]) == "—"  # ablation.md's cell: not "; ; "
+
+
 def test_targets_are_checked_against_the_baselines():
     v = Variant("v")
     settings = AblationSettings.quick(variants=(v,), synthetic=("dense",))

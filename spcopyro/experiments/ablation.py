@@ -37,6 +37,7 @@ import numpy as np
 from spcopyro.data import House, place_observations
 from spcopyro.experiments.ablation_report import TABLE2_CATEGORIES, settings_json
 from spcopyro.experiments.ablation_variants import Variant, parse_variant
+from spcopyro.results.concept_words import listed_top_words
 from spcopyro.synthetic import HouseSpec, lexicon_for
 
 __all__ = [
@@ -167,9 +168,12 @@ def _place_words(house: House) -> frozenset[str]:
 
 
 def top_words(result: object, house: House) -> tuple[list[list[tuple[str, float]]], float]:
-    """The top words of the largest concepts holding an utterance, and the share of them whose
-    top word is a place word (nan when none holds an utterance). ``house`` on the model's grid
-    (:func:`spcopyro.data.model_grid.model_house`), as the fit saw it."""
+    """The top words of the largest concepts holding an utterance, as ``fit`` lists them
+    (:func:`~spcopyro.results.concept_words.listed_top_words`: none for a concept of a fit that
+    did not model its words, whose words are all tied at the prior's), and the share of them
+    whose top word is a place word (nan when none holds an utterance or none lists words).
+    ``house`` on the model's grid (:func:`spcopyro.data.model_grid.model_house`), as the fit
+    saw it."""
     cells, _, unplaced = place_observations(
         house.grid,
         house.observations.word_xy,
@@ -179,7 +183,7 @@ def top_words(result: object, house: House) -> tuple[list[list[tuple[str, float]
     heard = np.unique(labels[cells[~unplaced]])
     sizes = np.bincount(labels, minlength=int(labels.max()) + 1)
     largest = heard[np.argsort(-sizes[heard], kind="stable")][:TOP_CONCEPTS]
-    words = [result.top_words(int(c), 3) for c in largest]  # type: ignore[attr-defined]
+    words = [listed_top_words(result, int(c), 3) for c in largest]
     places = _place_words(house)
-    share = float(np.mean([bool(w) and w[0][0] in places for w in words])) if words else np.nan
+    share = float(np.mean([bool(w) and w[0][0] in places for w in words])) if any(words) else np.nan
     return [[(str(k), round(float(p), 3)) for k, p in w] for w in words], share

@@ -170,7 +170,11 @@ def _top_words(records: list[dict[str, object]]) -> dict[str, dict[str, list]]:
 
 
 def _words_text(words: list) -> str:
-    return "; ".join(", ".join(f"{w} {p:.2f}" for w, p in concept) for concept in words) or "—"
+    """Each concept's words and probabilities; "—" where none lists any (a fit that did not
+    model its words lists none: :func:`spcopyro.experiments.ablation.top_words`)."""
+    if not any(words):
+        return "—"
+    return "; ".join(", ".join(f"{w} {p:.2f}" for w, p in concept) for concept in words)
 
 
 def markdown(report: dict, settings: AblationSettings) -> str:
