@@ -339,6 +339,13 @@ class DataPreparation:
         footprint_fov: degrees: an image informs only the cells within +-fov/2 of its yaw
             (needs the data's image yaw); None: the whole disc. Read only where
             ``footprint_radius`` > 0: words always use the disc.
+        footprint_reach_share: e in [0, 1): each observation's weight split into 1 - e over its
+            footprint (as above; its own cell where the radius is 0) and e spread uniformly
+            over its geodesic Voronoi cell among the observed cells of its modality, so that
+            some of each place's evidence reaches the border half-way to the next observation
+            (:mod:`spcopyro.data.footprint`, "Reaching the Voronoi border"); still one
+            observation in total, the same tempered product. 0 (the default): off, the
+            footprint exactly as without it.
         word_scaling: s > 0: each utterance's word counts (or tf-idf weights) times s, the
             words' weight against the images and the MRF (1: the paper). A tempered likelihood,
             as ``feature_scaling`` is for images (``floor100`` counts a histogram as 100 draws).
@@ -359,6 +366,7 @@ class DataPreparation:
     footprint_fov: float | None = None
     word_scaling: float = 1.0
     cell_size: float | None = None
+    footprint_reach_share: float = 0.0
 
     def __post_init__(self) -> None:
         def bad(name: str, why: str) -> ValueError:
@@ -386,6 +394,10 @@ class DataPreparation:
         fov = self.footprint_fov
         if fov is not None and not (_is_number(fov) and math.isfinite(fov) and 0 < fov <= 360):
             raise bad("footprint_fov", "must be None or an angle in degrees in (0, 360]")
+        share = self.footprint_reach_share
+        if not (_is_number(share) and math.isfinite(share) and 0 <= share < 1):
+            raise bad("footprint_reach_share", "must be a number in [0, 1): the share of each "
+                      "observation spread over its Voronoi cell (0: off)")  # fmt: skip
         ws = self.word_scaling
         if not (_is_number(ws) and math.isfinite(ws) and ws > 0):
             raise bad("word_scaling", "must be a positive finite number (1: the paper)")
@@ -424,11 +436,14 @@ class DataPreparation:
 
     def to_json(self) -> dict[str, object]:
         """The fields as JSON values, as saved (config.json, checkpoints, records):
-        ``word_footprint_radius`` only where set, so a preparation without it saves as before
-        it existed and what was saved then loads as it was."""
+        ``word_footprint_radius`` and ``footprint_reach_share`` only where set (not None, not
+        0), so a preparation without them saves as before they existed and what was saved then
+        loads as it was."""
         values = dataclasses.asdict(self)
         if self.word_footprint_radius is None:
             del values["word_footprint_radius"]
+        if not self.footprint_reach_share:
+            del values["footprint_reach_share"]
         return values
 
 

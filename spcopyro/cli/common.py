@@ -229,14 +229,16 @@ def _placement_lines(
     data line names them, ``words at cell``) and where the observations were placed."""
     observed = f"{len(counts.cells)} (where observations were placed)"
     prep = preparation
-    if prep is not None and prep.has_footprint:
+    if prep is not None and (prep.has_footprint or prep.footprint_reach_share):
         spread = prepared_cell_counts(house.grid, house.observations, prep, source=house.source,
                                       warn=False)  # fmt: skip
         radius, words = prep.footprint_radius, prep.words_radius
         own = at_cell = ""
         if words != radius:  # the data line's branching (fit_summary.data_line)
             own, at_cell = (f", words' {words:g} m", "") if words else ("", " (words at cell)")
-        observed += f"; {len(spread.cells)} within their {radius:g} m{own} footprints{at_cell}"
+        reach = " and Voronoi cells" if prep.footprint_reach_share else ""
+        observed += (f"; {len(spread.cells)} within their {radius:g} m{own} footprints{at_cell}"
+                     f"{reach}")  # fmt: skip
     p = counts.placement
     return [
         f"observed cells   {observed}",

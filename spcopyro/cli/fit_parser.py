@@ -256,6 +256,15 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="images inform only the cells within +-DEGREES/2 of their yaw (default: the "
         "whole disc)",
     )
+    p.add_argument(
+        "--footprint-reach-share",
+        type=float,
+        default=None,
+        metavar="E",
+        help="spread a share E in [0, 1) of each observation uniformly over its geodesic "
+        "Voronoi cell among its modality's observed cells, 1 - E over its footprint "
+        "(default 0: off)",
+    )
     p.add_argument("--no-figures", action="store_true",
                    help="write no PNG figures (semantic_map, trace, house, uncertainty, "
                         "agreement), saving seconds and matplotlib's import: labels.npy, "

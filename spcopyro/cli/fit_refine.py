@@ -29,7 +29,8 @@ grid's 22,179 cells in ~4 min, then 4-7 sweeps a second on the map's own cells, 
 docs/variational.md, "From spcopyro fit on a large map") and how to stop at the first stage."""
 
 REFINED_AWAY = ("cell_size", "feature_scaling", "word_scaling", "footprint",
-                "footprint_kernel", "footprint_fov", "word_footprint")  # fmt: skip
+                "footprint_kernel", "footprint_fov", "word_footprint",
+                "footprint_reach_share")  # fmt: skip
 """The options of the data preparation the refinement replaces (:mod:`spcopyro.fit.refine`):
 given on the command line, the recommended refinement is not run."""
 

@@ -121,6 +121,7 @@ def fit_settings(args: argparse.Namespace, house: House) -> tuple[SpCoSettings, 
         cell_size=cell_size_setting(args.cell_size), word_scaling=args.word_scaling,
         footprint_kernel=args.footprint_kernel, footprint_fov=args.footprint_fov,
         word_footprint_radius=args.word_footprint,
+        footprint_reach_share=args.footprint_reach_share,
     )  # fmt: skip
     further = {m.name for m in house.observations.modalities}
     for name in overrides["concentrations"] or {}:

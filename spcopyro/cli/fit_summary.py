@@ -96,6 +96,8 @@ def data_line(
         if p.words_radius != p.footprint_radius:  # --word-footprint: the words' own
             fov += f", words {_number(p.words_radius)} m" if p.words_radius else ", words at cell"
         parts.append(f"footprint {_number(p.footprint_radius)} m ({p.footprint_kernel}{fov})")
+    if p.footprint_reach_share:
+        parts.append(f"reach share {_number(p.footprint_reach_share)} (Voronoi cells)")
     if p.snap_distance != DEFAULT_SNAP_DISTANCE:
         parts.append(f"snap distance {_number(p.snap_distance)} m")
     return f"{'data':<{LABEL}}{', '.join(parts)}"

@@ -60,18 +60,10 @@ from spcopyro.data.word_weighting import resolve_word_weighting
 from spcopyro.maps.grid import OccupancyGrid
 
 __all__ = [
-    "KEEPS",
-    "MAX_COUNT_TOTAL",
-    "CellCounts",
-    "CellModalityCounts",
-    "FeatureScaling",
-    "cell_counts",
-    "check_count_totals",
-    "prepared_cell_counts",
-    "say_placement_warnings",
-    "scale_features",
-    "scaled_away",
-]
+    "KEEPS", "MAX_COUNT_TOTAL", "CellCounts", "CellModalityCounts", "FeatureScaling",
+    "cell_counts", "check_count_totals", "prepared_cell_counts", "say_placement_warnings",
+    "scale_features", "scaled_away",
+]  # fmt: skip
 
 logger = logging.getLogger("spcopyro")
 
@@ -361,6 +353,7 @@ def cell_counts(
     word_scaling: float = 1.0,
     warn: bool = True,
     word_footprint_radius: float | None = None,
+    footprint_reach_share: float = 0.0,
 ) -> CellCounts:
     """Sum the observations per free cell (the model's sufficient statistics).
 
@@ -396,8 +389,10 @@ def cell_counts(
     weights w_oc summing to 1 (``footprint_kernel``; ``footprint_fov`` degrees around
     ``obs.image_yaw`` for images), so each sum above becomes sum_o w_oc counts_o and the observed
     cells are every cell with a positive weight; ``word_footprint_radius``, if not None, is the
-    utterances' own (0: their cell; the fov is read only where ``footprint_radius`` > 0). Both 0
-    leave the counts as without them. ``warn=False``: no warnings about observations left out
+    utterances' own (0: their cell; the fov is read only where ``footprint_radius`` > 0);
+    ``footprint_reach_share`` e > 0 moves a share e of each observation's weight to its geodesic
+    Voronoi cell among its modality's observed cells (with both radii 0 too). All 0 leave the
+    counts as without them. ``warn=False``: no warnings about observations left out
     (:func:`say_placement_warnings`: a caller counting the same observations twice says them once,
     a fit after its placement check). ``word_scaling`` s multiplies every utterance's word counts
     (or tf-idf weights) by s before they are placed (``DataPreparation.word_scaling``).
@@ -436,7 +431,7 @@ def cell_counts(
     further = [place_observations(grid, m.positions, snap_distance) for m in obs.modalities]
 
     words_radius = words_footprint_radius(footprint_radius, word_footprint_radius)
-    if footprint_on(footprint_radius, words_radius):
+    if footprint_on(footprint_radius, words_radius) or footprint_reach_share:
         plain = cell_counts(grid, obs, feature_scaling=feature_scaling,
                             word_weighting=word_weighting, snap_distance=snap_distance,
                             vocabulary=vocab, source=source, word_scaling=word_scaling,
@@ -444,10 +439,11 @@ def cell_counts(
         placed = (image_cell, word_cell, [cell for cell, _, _ in further])
         # within shared_footprints (spcopyro fit), spread once for its summary and model data
         key = (feature_scaling, word_weighting, snap_distance, vocab, word_scaling,
-               footprint_radius, footprint_kernel, footprint_fov, words_radius)  # fmt: skip
+               footprint_radius, footprint_kernel, footprint_fov, words_radius,
+               footprint_reach_share)  # fmt: skip
         return shared((grid, obs), key, lambda: _with_footprint(
             plain, grid, obs, features, words, placed, (footprint_radius, words_radius),
-            footprint_kernel, footprint_fov,
+            footprint_kernel, footprint_fov, footprint_reach_share,
         ))  # fmt: skip
     lost = scaled_away(obs.image_features, features)  # [n] images left with nothing
     image_ok = image_cell >= 0  # [T] bool
@@ -532,6 +528,7 @@ def prepared_cell_counts(
         footprint_radius=preparation.footprint_radius, footprint_fov=preparation.footprint_fov,
         footprint_kernel=preparation.footprint_kernel, snap_distance=preparation.snap_distance,
         word_footprint_radius=preparation.word_footprint_radius, vocabulary=vocabulary,
+        footprint_reach_share=preparation.footprint_reach_share,
     )  # fmt: skip
 
 
@@ -545,10 +542,12 @@ def _with_footprint(
     radii: tuple[float, float],
     kernel: FootprintKernel,
     fov: float | None,
+    share: float = 0.0,
 ) -> CellCounts:
     """``plain`` (the counts without footprint: placement report, vocabulary) with every
     observation spread over its footprint (:func:`~spcopyro.data.footprint.footprint_weights`):
-    ``radii`` (metres) the images' and further modalities', then the utterances' (0: own cell).
+    ``radii`` (metres) the images' and further modalities', then the utterances' (0: own cell);
+    ``share`` of each over its Voronoi cell among its modality's (the reach share).
     ``features`` [T, K] and ``words`` [U, V] are the scaled / weighted rows per observation,
     ``placed`` the free index of each image, utterance and further observation (-1: unplaced)."""
     fov = fov if radii[0] else None  # images at their own cell (words' footprint only): unread
@@ -559,11 +558,11 @@ def _with_footprint(
     bar = _footprint_bar(grid, max(radii), (image_cell, word_cell, *further_cells))
     graph = free_cell_graph(grid)
     image_w = footprint_weights(grid, image_cell, radii[0], kernel, yaw=obs.image_yaw, fov=fov,
-                                graph=graph, advance=bar.update)  # fmt: skip  # [T, N]
+                                graph=graph, advance=bar.update, reach_share=share)  # fmt: skip
     word_w = footprint_weights(grid, word_cell, radii[1], kernel, graph=graph,
-                               advance=bar.update)  # fmt: skip  # [U, N]
-    further_w = [footprint_weights(grid, c, radii[0], kernel, graph=graph, advance=bar.update)
-                 for c in further_cells]  # fmt: skip
+                               advance=bar.update, reach_share=share)  # fmt: skip  # [U, N]
+    further_w = [footprint_weights(grid, c, radii[0], kernel, graph=graph, advance=bar.update,
+                                   reach_share=share) for c in further_cells]  # fmt: skip
     reached = [np.unique(w.indices) for w in (image_w, word_w, *further_w)]
     cells = np.unique(np.concatenate(reached)).astype(np.int64)  # [M]
     bar.set_postfix_str(f"summing the counts on the {cells.size:,} cells they reach")
