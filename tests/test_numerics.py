@@ -182,13 +182,11 @@ def test_extreme_hyperparameters_are_warned_about_with_the_reason():
 
 
 def test_the_concentrations_warned_about_are_the_configs_hyperparameters_but_gamma():
-    """The concentrations checked are named from config.HYPERPARAMETER_FIELDS (gamma, the MRF's
-    coupling, left out), in its order, then each further modality's: they were named by hand
-    as alpha, beta, chi, another order than the config's alpha, chi, beta."""
-    from spcopyro.config import HYPERPARAMETER_FIELDS
-
-    fields = [name for name in HYPERPARAMETER_FIELDS if name != "gamma"]
-    assert fields == ["alpha", "chi", "beta"]
+    """The concentrations checked are alpha and the modalities' (config.CONCENTRATION_FIELDS, as
+    config.HYPERPARAMETER_FIELDS orders them, gamma, the MRF's coupling, left out), then each
+    further modality's: they were named by hand as alpha, beta, chi, another order than the
+    config's alpha, chi, beta."""
+    fields = ["alpha", "chi", "beta"]
     extreme = SpCoConfig(**dict.fromkeys(fields, 1e13), concentrations={"wifi": 1e13})
     said = config_warnings(extreme)
     assert [w.split(" = ")[0] for w in said] == [*fields, "concentration 'wifi'"]

@@ -11,7 +11,7 @@ samples (those about the Gibbs sampler are given to gibbs and vi-gibbs only).
 from __future__ import annotations
 
 from spcopyro._util.messages import setting
-from spcopyro.config import HYPERPARAMETER_FIELDS, DataPreparation, SpCoConfig
+from spcopyro.config import CONCENTRATION_FIELDS, DataPreparation, SpCoConfig
 
 FREEZING_GAMMA = 10.0
 """gamma at and above which the sampler freezes: measured from random labels on the synthetic
@@ -77,9 +77,7 @@ def config_warnings(config: SpCoConfig, sampled: bool = True) -> list[str]:
             # no closed form for 8 neighbours: SpCoConfig.critical_gamma
         )
     low, high = CONCENTRATION_RANGE
-    # the config's hyperparameter fields but gamma, which is the MRF's coupling, not a
-    # concentration (warned about above): alpha, chi, beta, then each further modality's
-    fields = [name for name in HYPERPARAMETER_FIELDS if name != "gamma"]
+    fields = ("alpha", *CONCENTRATION_FIELDS.values())
     concentrations = [(name, getattr(config, name)) for name in fields]
     concentrations += [(f"concentration {n!r}", v) for n, v in config.concentrations]
     for name, value in concentrations:
