@@ -297,7 +297,7 @@ def test_top_words_list_none_for_a_fit_that_did_not_model_its_words():
     ``words_modelled``): a fit with ``use_words`` off lists no words (its w rows are the
     prior's, every word tied; they listed three tied words in tie order, read as what the
     concept means) and its place and filler shares are nan; a fit that modelled its words lists
-    them as before."""
+    them, as fit does none for a concept where no word was heard."""
     import dataclasses
     import math
 
@@ -305,7 +305,7 @@ def test_top_words_list_none_for_a_fit_that_did_not_model_its_words():
     from spcopyro.experiments.ablation import top_words
     from spcopyro.experiments.ablation_report import _words_text
     from spcopyro.fit.house import fit_house
-    from spcopyro.study.evaluate import _sentence_scores
+    from spcopyro.study.evaluate import SENTENCE_MIN_CELLS, _sentence_scores
 
     house = make_house(seed=0, spec=HouseSpec(sentence_fraction=0.5))
     settings = preset("original-code", gamma=3.0, num_concepts=6)
@@ -313,7 +313,10 @@ def test_top_words_list_none_for_a_fit_that_did_not_model_its_words():
     words, share = top_words(result, house)
     assert words and all(len(w) == 3 for w in words) and math.isfinite(share)
     sentences = _sentence_scores(result)
-    assert all(len(w) == 3 for w in json.loads(sentences["concept_words"]))
+    sizes = np.bincount(result.labels, minlength=result.config.num_concepts)
+    large = [int(c) for c in result.concepts_in_use() if sizes[c] >= SENTENCE_MIN_CELLS]
+    expected = [3 if result.heard(c) else 0 for c in large]  # as fit: none where none heard
+    assert [len(w) for w in json.loads(sentences["concept_words"])] == expected
     unmodelled = dataclasses.replace(result, config=result.config.replace(use_words=False))
     words, share = top_words(unmodelled, house)
     assert words and all(w == [] for w in words) and math.isnan(share)

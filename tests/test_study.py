@@ -1130,3 +1130,37 @@ def test_the_maps_read_each_row_s_stored_map_once(tmp_path, monkeypatch):
     names = [[name for name, _ in panels] for panels in drawn]
     assert names == [["gibbs", "other / gibbs"]] * 2
     assert all((labels == 0).all() for panels in drawn for _, labels in panels)  # the first seed
+
+
+def test_sentence_scores_list_no_words_for_a_concept_where_none_was_heard():
+    """concept_words lists each large concept's words as fit does (``listed_top_words``): none
+    for a concept of 50+ cells where no word was heard (its w row is the prior's, the words
+    tied), which filler_top_share then leaves out; they listed its tie-order first words and
+    counted it."""
+    import math
+
+    import numpy as np
+
+    from spcopyro.config import SpCoConfig
+
+    tied = [("the", 0.1), ("a", 0.1), ("is", 0.1)]  # tie order: fillers first
+
+    class Fitted:
+        config = SpCoConfig(num_concepts=3)
+        labels = np.repeat([0, 1, 2], evaluate.SENTENCE_MIN_CELLS)  # [N]
+
+        def concepts_in_use(self):
+            return np.array([0, 1, 2])
+
+        def heard(self, concept):
+            return [4.0, 6.0, 0.0][concept]  # concept 2: no word heard
+
+        def top_words(self, concept, n):
+            return [[("the", 0.5), ("kitchen", 0.3)], [("sofa", 0.6), ("the", 0.2)], tied][concept]
+
+    scores = evaluate._sentence_scores(Fitted())
+    assert json.loads(scores["concept_words"]) == [["the", "kitchen"], ["sofa", "the"], []]
+    assert scores["filler_top_share"] == 0.5  # of the two concepts listing words
+    unheard = Fitted()
+    unheard.heard = lambda concept: 0.0
+    assert math.isnan(evaluate._sentence_scores(unheard)["filler_top_share"])

@@ -39,9 +39,11 @@ Scores (every one that applies; the others are left empty in the table, :data:`S
   ``Bethe ELBO``: a sampler's log joint and a variational ELBO are not on one scale);
 * on a synthetic house with sentences (``sentence_fraction`` > 0: sentences as in the
   paper's Section 5, not its Table 5 setting): ``concept_words`` (JSON text: the top 3 words
-  of each concept labelling at least :data:`SENTENCE_MIN_CELLS` cells; none where the fit
-  did not model its words, as above) and ``filler_top_share`` (the share of them whose top
-  word is a filler, :data:`spcopyro.synthetic.FILLER_WORDS`; nan where none lists words);
+  of each concept labelling at least :data:`SENTENCE_MIN_CELLS` cells, as ``fit`` lists them,
+  :func:`~spcopyro.results.concept_words.listed_top_words`: none for a concept where no word
+  was heard or where the fit did not model its words) and ``filler_top_share`` (the share of
+  the concepts listing words whose top word is a filler,
+  :data:`spcopyro.synthetic.FILLER_WORDS`; nan where none lists words);
 * the trace (objective, concepts in use and seconds per iteration; with the study's
   ``ari_every``, also ``ari`` against the truth at ``ari_iterations``, paper Fig. 5), returned
   beside the record and saved by the caller as ``traces/KEY.npz``;
@@ -89,7 +91,7 @@ from spcopyro.metrics import (
     heldout_word_prediction,
     matching_rate,
 )
-from spcopyro.results.concept_words import words_modelled
+from spcopyro.results.concept_words import listed_top_words
 from spcopyro.results.map_checks import degenerate_map_advice
 from spcopyro.study.cell_warnings import captured_warnings, warnings_text
 from spcopyro.study.cells import Cell, source_digest
@@ -330,10 +332,9 @@ def _sentence_scores(result) -> dict[str, object]:
     """``filler_top_share`` and ``concept_words`` of a fit (module docstring)."""
     sizes = np.bincount(result.labels, minlength=result.config.num_concepts)
     concepts = [int(c) for c in result.concepts_in_use() if sizes[c] >= SENTENCE_MIN_CELLS]
-    modelled = words_modelled(result)  # else every word tied at the prior's: none listed
-    words = [[w for w, _ in result.top_words(c, 3)] if modelled else [] for c in concepts]
-    fillers = [bool(ws) and ws[0] in FILLER_WORDS for ws in words]
-    share = float(np.mean(fillers)) if any(words) else float("nan")
+    words = [[w for w, _ in listed_top_words(result, c, 3)] for c in concepts]
+    listed = [ws for ws in words if ws]  # as fit lists them: none unheard or not modelled
+    share = float(np.mean([ws[0] in FILLER_WORDS for ws in listed])) if listed else float("nan")
     return {"filler_top_share": share, "concept_words": json.dumps(words)}
 
 
