@@ -170,8 +170,9 @@ def _place_words(house: House) -> frozenset[str]:
 def top_words(result: object, house: House) -> tuple[list[list[tuple[str, float]]], float]:
     """The top words of the largest concepts holding an utterance, as ``fit`` lists them
     (:func:`~spcopyro.results.concept_words.listed_top_words`: none for a concept of a fit that
-    did not model its words, whose words are all tied at the prior's), and the share of them
-    whose top word is a place word (nan when none holds an utterance or none lists words).
+    did not model its words, whose words are all tied at the prior's), and the share of those
+    listing words whose top word is a place word (nan when none holds an utterance or none lists
+    words).
     ``house`` on the model's grid (:func:`spcopyro.data.model_grid.model_house`), as the fit
     saw it."""
     cells, _, unplaced = place_observations(
@@ -185,5 +186,6 @@ def top_words(result: object, house: House) -> tuple[list[list[tuple[str, float]
     largest = heard[np.argsort(-sizes[heard], kind="stable")][:TOP_CONCEPTS]
     words = [listed_top_words(result, int(c), 3) for c in largest]
     places = _place_words(house)
-    share = float(np.mean([bool(w) and w[0][0] in places for w in words])) if any(words) else np.nan
+    listed = [w for w in words if w]
+    share = float(np.mean([w[0][0] in places for w in listed])) if listed else np.nan
     return [[(str(k), round(float(p), 3)) for k, p in w] for w in words], share
