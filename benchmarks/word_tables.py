@@ -44,6 +44,7 @@ from spcopyro.fit.house import prepare_model_data, result_of
 from spcopyro.gibbs.method import GibbsInference
 from spcopyro.gibbs.options import GibbsOptions
 from spcopyro.metrics import matching_rate
+from spcopyro.results.concept_words import listed_top_words
 from spcopyro.results.result import SpCoResult
 from spcopyro.results.semantic_map import SpCoSemanticMap
 from spcopyro.synthetic import HouseSpec, make_house
@@ -56,19 +57,20 @@ KINDS = ("draw", "mean given labels", "mean over samples")
 
 
 def top_word_agreement(result: SpCoResult, truth: np.ndarray, names: tuple[str, ...]) -> float:
-    """Share of the concepts in use where a word was heard whose most probable word is a token
-    of the name of the category holding most of their cells."""
+    """Share of the concepts in use that list a word as ``fit`` lists them (a word was heard
+    there and the fit modelled its words) whose most probable word is a token of the name of the
+    category holding most of their cells."""
     image = result.label_image()  # [H, W]
     hits = []
     for concept in result.concepts_in_use():
-        if result.heard(int(concept)) == 0:
-            continue  # no word heard here: its top word means nothing
+        listed = listed_top_words(result, int(concept), 1)  # as fit lists them
+        if not listed:
+            continue  # no word heard here, or words not modelled: its top word means nothing
         cells = truth[(image == concept) & (truth >= 0)]
         if cells.size == 0:
             continue
         category = names[int(np.bincount(cells).argmax())]
-        word = result.top_words(int(concept), 1)[0][0]
-        hits.append(word in category.split())
+        hits.append(listed[0][0] in category.split())
     return float(np.mean(hits)) if hits else 0.0
 
 

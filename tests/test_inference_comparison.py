@@ -863,6 +863,32 @@ def test_a_listed_concept_where_no_word_was_heard_says_so():
     assert found_words(["kitchen/sink", ""]) == "kitchen/sink; (no words heard here)"
 
 
+def test_a_fit_that_did_not_model_its_words_says_so_once():
+    """A fit with use_words off lists no words (every w row is the prior's, the words tied:
+    they were listed in tie order as if learnt); comparison.md says once that the fit did not
+    model its words, as fit's listing does, not "(no words heard here)" for each concept,
+    which would say that no word was heard."""
+    from spcopyro.config import preset
+    from spcopyro.experiments.comparison_report import summarise, table_markdown
+    from spcopyro.synthetic import HouseSpec, make_house
+
+    spec = HouseSpec(height=40, width=50, num_rooms=3, num_trials=1)
+    settings = preset("original-code", gamma=3.0, num_concepts=10, use_words=False)
+    problem = comparison.Problem(make_house(0, spec), settings, seed=0, name="tiny")
+    record, result = comparison.fit_and_score_with_result(VARIANTS["gibbs"], problem, 4)
+    assert any(result.heard(int(c)) for c in result.concepts_in_use()[:8])  # words were heard
+    assert record["words_modelled"] is False
+    assert record["top_words"] and set(record["top_words"]) == {""}
+    compared = comparison.ComparisonSettings(house_types=("synthetic",), variants=("gibbs",))
+    text = table_markdown(summarise({"synthetic": {"gibbs": [record]}}, compared, [], 1.0))
+    (line,) = [line for line in text.splitlines() if line.startswith("- synthetic, gibbs:")]
+    assert line == "- synthetic, gibbs: words not modelled (use_words off)", line
+    heard = dataclasses.replace(problem, settings=preset("original-code", gamma=3.0,
+                                                         num_concepts=10))  # fmt: skip
+    record, _ = comparison.fit_and_score_with_result(VARIANTS["gibbs"], heard, 4)
+    assert "words_modelled" not in record and any(record["top_words"])  # as before
+
+
 def test_a_cached_record_of_an_earlier_version_reads_as_this_ones():
     """Records held the display text ("(no words heard)", then "(no words heard here)") for a
     concept that heard no word: a wording change rewrote 21 entries of the old-records fixture,

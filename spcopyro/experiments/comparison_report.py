@@ -48,7 +48,7 @@ from spcopyro.experiments.inference_comparison import (
 )
 from spcopyro.experiments.table import json_default
 from spcopyro.inference.protocol import options_for_start
-from spcopyro.results.concept_words import NO_WORDS
+from spcopyro.results.concept_words import NO_WORDS, WORDS_NOT_MODELLED
 
 
 def _mean_sd(values: list[float]) -> dict[str, float]:
@@ -79,6 +79,8 @@ def _summarise_variant(records: list[dict]) -> dict[str, object]:
         "curve_kind": first["curve_kind"],
         "top_words_first_fit": first["top_words"],
     }
+    if first.get("words_modelled", True) is False:  # use_words off: no concept lists words
+        out["words_modelled_first_fit"] = False
     if all("start_iterations" in r for r in records):  # vi-gibbs: its CAVI start's iterations
         out["start_iterations"] = _mean_sd([r["start_iterations"] for r in records])
     if "ess_per_second" in first:
@@ -399,9 +401,15 @@ def _public_fits(records: dict[str, list[dict]]) -> str:
     return "; ".join(parts) or "none"
 
 
-def found_words(entries: Sequence[str]) -> str:
+def found_words(entries: Sequence[str], modelled: bool = True) -> str:
     """A line of "Concepts found": a record's ``top_words`` entries (``"kitchen/sink"``, or
-    :data:`~spcopyro.experiments.inference_comparison.HEARD_NOTHING`: :data:`NO_WORDS_SHOWN`)."""
+    :data:`~spcopyro.experiments.inference_comparison.HEARD_NOTHING`: :data:`NO_WORDS_SHOWN`);
+    for a fit that did not model its words (``modelled`` False: the record's
+    ``words_modelled``), whose concepts list none, "words not modelled (use_words off)" once for
+    the whole fit, as ``fit`` says it
+    (:data:`~spcopyro.results.concept_words.WORDS_NOT_MODELLED`)."""
+    if not modelled:
+        return f"words {WORDS_NOT_MODELLED}"
     return "; ".join(NO_WORDS_SHOWN if w == HEARD_NOTHING else w for w in entries)
 
 
@@ -512,7 +520,7 @@ def table_markdown(summary: dict[str, object]) -> str:
     ]
     for house_type, by_variant in by_type.items():
         for key, s in by_variant.items():
-            words = found_words(s["top_words_first_fit"])
+            words = found_words(s["top_words_first_fit"], s.get("words_modelled_first_fit", True))
             lines.append(f"- {house_type}, {key}: {words}")
     lines += ["", "## Findings (from the numbers above)", ""]
     none = (  # the section was left empty

@@ -76,6 +76,7 @@ from spcopyro.metrics import (
     matching_rate,
 )
 from spcopyro.model import ModelData
+from spcopyro.results.concept_words import listed_top_words, words_modelled
 from spcopyro.results.result import SpCoResult
 from spcopyro.synthetic import HouseSpec
 
@@ -355,6 +356,8 @@ def fit_and_score_with_result(
         "top_words": [_top_words(final_result, int(c)) for c in final_result.concepts_in_use()[:8]],
         "objective": output.trace.objective_name,
     }
+    if not words_modelled(final_result):  # use_words off: its top_words list none
+        record["words_modelled"] = False
     if "vi_iterations_run" in output.options:  # vi-gibbs: the CAVI start before its sweeps
         record["start_iterations"] = int(output.options["vi_iterations_run"])  # type: ignore[call-overload]
     if output.trace.objective_name == "log joint" and output.label_samples is not None:
@@ -399,10 +402,11 @@ def current_record(record: dict) -> dict:
 
 
 def _top_words(result: SpCoResult, concept: int) -> str:
-    """``"kitchen/sink"``: the concept's 2 most probable words, or :data:`HEARD_NOTHING`."""
-    if result.heard(concept) == 0:
-        return HEARD_NOTHING
-    return "/".join(w for w, _ in result.top_words(concept, 2))
+    """``"kitchen/sink"``: the concept's 2 most probable words as ``fit`` lists them
+    (:func:`~spcopyro.results.concept_words.listed_top_words`), or :data:`HEARD_NOTHING` where
+    it lists none: no word was heard in the concept's region, or the fit did not model its
+    words (the record's ``words_modelled`` False then)."""
+    return "/".join(w for w, _ in listed_top_words(result, concept, 2))
 
 
 def _confidence(output: InferenceOutput) -> np.ndarray | None:
