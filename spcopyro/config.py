@@ -145,7 +145,9 @@ def preset_inference(name: str) -> dict[str, object]:
     return dict(PRESET_INFERENCE.get(name, {}))
 
 
-def _is_number(value: object) -> bool:
+def is_number(value: object) -> bool:
+    """Whether ``value`` is an int or a float, not a bool (True is an int): the number check
+    of every validated field here and of the footprint's own arguments."""
     return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 
@@ -158,10 +160,20 @@ def words_footprint_radius(footprint_radius: float, word_footprint_radius: float
 def footprint_on(footprint_radius: float, words_radius: float) -> bool:
     """Whether an observation footprint is on: the images' (and further modalities')
     ``footprint_radius`` or the utterances' resolved ``words_radius`` (metres) other than 0.
-    The one test of :attr:`DataPreparation.has_footprint` and of
-    :func:`~spcopyro.data.counts.cell_counts`, whose radii are not validated: a negative one
-    goes on to the footprint's own error, as before (not off)."""
+    The one test of :attr:`DataPreparation.has_footprint` (the kernel's and field of view's
+    reads, their warnings) and, with the reach share, of :func:`footprint_spreads`. Radii are
+    not validated here: a negative one goes on to the footprint's own error, as before (not
+    off)."""
     return bool(footprint_radius) or bool(words_radius)
+
+
+def footprint_spreads(footprint_radius: float, words_radius: float, reach_share: float) -> bool:
+    """Whether the counts spread observations beyond their own cells: a footprint is on
+    (:func:`footprint_on`) or the ``reach_share`` (``DataPreparation.footprint_reach_share``)
+    is other than 0, which spreads even at radius 0. The one test of
+    :attr:`DataPreparation.spreads` and of :func:`~spcopyro.data.counts.cell_counts` (whose
+    arguments are not validated: a bad share goes on to the footprint's own error)."""
+    return footprint_on(footprint_radius, words_radius) or bool(reach_share)
 
 
 @dataclass(frozen=True)
@@ -215,9 +227,9 @@ class SpCoConfig:
             raise bad("prior", "must be 'dp' or 'dirichlet'")
         for name in ("alpha", "beta", "chi"):
             value = getattr(self, name)
-            if not (_is_number(value) and math.isfinite(value) and value > 0):
+            if not (is_number(value) and math.isfinite(value) and value > 0):
                 raise bad(name, "must be a finite positive number")
-        if not (_is_number(self.gamma) and math.isfinite(self.gamma)):
+        if not (is_number(self.gamma) and math.isfinite(self.gamma)):
             raise bad("gamma", "must be a finite number")
         if self.gamma < 0:
             # The sampler's fast path writes exp(gamma n) = 1 + expm1(gamma n) as a mixture of
@@ -241,7 +253,7 @@ class SpCoConfig:
         for name, value in pairs:
             if name in (IMAGES, WORDS):
                 raise bad("concentrations", f"{name!r} is set by chi / beta, not here")
-            if not (_is_number(value) and math.isfinite(value) and value > 0):
+            if not (is_number(value) and math.isfinite(value) and value > 0):
                 raise bad("concentrations", f"{name!r} must be a finite positive number")
         if len({name for name, _ in pairs}) != len(pairs):
             raise bad("concentrations", "names a modality twice")
@@ -374,35 +386,35 @@ class DataPreparation:
 
         fs = self.feature_scaling
         if not (
-            fs in ("probability", "floor100") or (_is_number(fs) and math.isfinite(fs) and fs > 0)
+            fs in ("probability", "floor100") or (is_number(fs) and math.isfinite(fs) and fs > 0)
         ):
             raise bad("feature_scaling", "must be 'probability', 'floor100' or a positive float")
         if self.word_weighting not in WORD_WEIGHTINGS:
             raise bad("word_weighting", f"must be {one_of(WORD_WEIGHTINGS)}")
         snap = self.snap_distance
-        if not (_is_number(snap) and math.isfinite(snap) and snap >= 0):
+        if not (is_number(snap) and math.isfinite(snap) and snap >= 0):
             raise bad("snap_distance", "must be a finite number of metres >= 0")
         radius = self.footprint_radius
-        if not (_is_number(radius) and math.isfinite(radius) and radius >= 0):
+        if not (is_number(radius) and math.isfinite(radius) and radius >= 0):
             raise bad("footprint_radius", "must be a finite number of metres >= 0 (0: off)")
         words = self.word_footprint_radius
-        if words is not None and not (_is_number(words) and math.isfinite(words) and words >= 0):
+        if words is not None and not (is_number(words) and math.isfinite(words) and words >= 0):
             raise bad("word_footprint_radius", "must be None (footprint_radius's) or a finite "
                       "number of metres >= 0 (0: each utterance at its own cell)")  # fmt: skip
         if self.footprint_kernel not in ("uniform", "gaussian"):
             raise bad("footprint_kernel", "must be 'uniform' or 'gaussian'")
         fov = self.footprint_fov
-        if fov is not None and not (_is_number(fov) and math.isfinite(fov) and 0 < fov <= 360):
+        if fov is not None and not (is_number(fov) and math.isfinite(fov) and 0 < fov <= 360):
             raise bad("footprint_fov", "must be None or an angle in degrees in (0, 360]")
         share = self.footprint_reach_share
-        if not (_is_number(share) and math.isfinite(share) and 0 <= share < 1):
+        if not (is_number(share) and math.isfinite(share) and 0 <= share < 1):
             raise bad("footprint_reach_share", "must be a number in [0, 1): the share of each "
                       "observation spread over its Voronoi cell (0: off)")  # fmt: skip
         ws = self.word_scaling
-        if not (_is_number(ws) and math.isfinite(ws) and ws > 0):
+        if not (is_number(ws) and math.isfinite(ws) and ws > 0):
             raise bad("word_scaling", "must be a positive finite number (1: the paper)")
         size = self.cell_size
-        if size is not None and not (_is_number(size) and math.isfinite(size) and size > 0):
+        if size is not None and not (is_number(size) and math.isfinite(size) and size > 0):
             raise bad("cell_size", "must be None (the map's cells) or a positive number of metres")
 
     def replace(self, **changes: object) -> DataPreparation:
@@ -421,6 +433,14 @@ class DataPreparation:
         utterances' :attr:`words_radius` > 0 (the kernel is read then; the field of view only
         where ``footprint_radius`` > 0: it applies to images)."""
         return footprint_on(self.footprint_radius, self.words_radius)
+
+    @property
+    def spreads(self) -> bool:
+        """Whether the counts spread any observation beyond its own cell: :attr:`has_footprint`
+        or a ``footprint_reach_share`` > 0 (:func:`footprint_spreads`); the observed cells are
+        then the cells the spread reaches, not only where observations were placed."""
+        return footprint_spreads(self.footprint_radius, self.words_radius,
+                                 self.footprint_reach_share)  # fmt: skip
 
     def reads(self, field: str) -> bool:
         """Whether the counts read the footprint setting ``field``: ``"footprint_kernel"``

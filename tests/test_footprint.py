@@ -252,6 +252,14 @@ def test_bad_footprint_settings_are_refused():
     assert preset("paper-dp").data.footprint_radius == 0.0  # off by default: the paper
 
 
+@pytest.mark.parametrize("bad", [True, -0.5, float("inf"), "0.5"])
+def test_footprint_weights_refuse_a_bad_radius_as_the_preparation_does(bad):
+    """footprint_weights' own radius check is config.is_number's, DataPreparation's: True (an
+    int) passed it as a radius of 1 m."""
+    with pytest.raises(ValueError, match=rf"footprint_radius={bad!r}: must be a finite number"):
+        footprint_weights(tiny_grid(["..."]), np.array([0]), bad)
+
+
 # -- the per-cell counts ---------------------------------------------------------------------------
 
 

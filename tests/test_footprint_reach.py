@@ -21,10 +21,15 @@ from gibbs_problems import tiny_grid
 from test_footprint import ROWS, observations
 
 from spcopyro.cli.main import main
-from spcopyro.config import DataPreparation, preset
-from spcopyro.data import cell_counts, place_observations
+from spcopyro.config import DataPreparation, footprint_spreads, preset
+from spcopyro.data import cell_counts, footprint, place_observations
 from spcopyro.data.counts import prepared_cell_counts
-from spcopyro.data.footprint import disc_weights, footprint_weights, voronoi_weights
+from spcopyro.data.footprint import (
+    disc_weights,
+    footprint_weights,
+    free_cell_graph,
+    voronoi_weights,
+)
 from spcopyro.fit.refine import refined_settings, replaced_preparation
 
 
@@ -143,6 +148,46 @@ def test_counts_with_the_reach_share_are_the_weighted_sums_factored_too(problem,
     np.testing.assert_allclose(words, word_w[:, reached].T @ lengths)
     for name, dense in (("images", counts.image_counts), ("words", counts.word_counts)):
         np.testing.assert_allclose(counts.spread[name].dense(), dense, atol=1e-12)
+
+
+def test_the_free_cell_graph_is_built_once_where_none_is_given(problem, monkeypatch):
+    """footprint_weights without a graph built it in disc_weights and again for the Voronoi
+    part: once now, passed to both, the weights as with a graph given."""
+    grid, obs = problem
+    cells, _, _ = place_observations(grid, obs.image_xy, 0.0)
+    given = footprint_weights(grid, cells, 0.25, reach_share=0.5, graph=free_cell_graph(grid))
+    built = []
+
+    def counted(of):
+        built.append(of)
+        return free_cell_graph(of)
+
+    monkeypatch.setattr(footprint, "free_cell_graph", counted)
+    weights = footprint_weights(grid, cells, 0.25, reach_share=0.5)
+    assert len(built) == 1
+    for part in ("data", "indices", "indptr"):
+        assert getattr(weights, part).tobytes() == getattr(given, part).tobytes()
+
+
+def test_a_reach_share_alone_spreads_the_counts_and_the_observed_cells_line_says_so():
+    """At radius 0 no footprint is on (has_footprint: the kernel and fov unread) but the reach
+    share spreads the counts (DataPreparation.spreads, config.footprint_spreads: the one test
+    of cell_counts and of the summary's observed cells line)."""
+    from spcopyro.cli.common import _summary
+    from spcopyro.data.model_grid import model_house
+    from spcopyro.synthetic import HouseSpec, make_house
+
+    data = preset("coarse", footprint_radius=0.0, footprint_reach_share=0.25).data
+    assert not data.has_footprint and data.spreads
+    assert not data.replace(footprint_reach_share=0.0).spreads
+    assert footprint_spreads(0.0, 0.0, 0.25) and not footprint_spreads(0.0, 0.0, 0.0)
+    assert footprint_spreads(0.5, 0.0, 0.0) and footprint_spreads(0.0, 0.5, 0.0)
+    house = model_house(make_house(seed=0, spec=HouseSpec.embedded()), data.cell_size)
+    lines = _summary(house, warn=False, preparation=data).splitlines()
+    observed = next(x for x in lines if x.startswith("observed cells"))
+    assert observed.endswith(" within their 0 m footprints and Voronoi cells")
+    placed, spread = (int(x.split()[0]) for x in observed.split(maxsplit=2)[2].split("; "))
+    assert spread > placed
 
 
 def test_the_refinement_replaces_the_reach_share():

@@ -229,7 +229,7 @@ def _placement_lines(
     data line names them, ``words at cell``) and where the observations were placed."""
     observed = f"{len(counts.cells)} (where observations were placed)"
     prep = preparation
-    if prep is not None and (prep.has_footprint or prep.footprint_reach_share):
+    if prep is not None and prep.spreads:
         spread = prepared_cell_counts(house.grid, house.observations, prep, source=house.source,
                                       warn=False)  # fmt: skip
         radius, words = prep.footprint_radius, prep.words_radius

@@ -33,7 +33,7 @@ from spcopyro.config import (
     FeatureScaling,
     FootprintKernel,
     WordWeightingSetting,
-    footprint_on,
+    footprint_spreads,
     words_footprint_radius,
 )
 from spcopyro.data.footprint import (
@@ -431,7 +431,7 @@ def cell_counts(
     further = [place_observations(grid, m.positions, snap_distance) for m in obs.modalities]
 
     words_radius = words_footprint_radius(footprint_radius, word_footprint_radius)
-    if footprint_on(footprint_radius, words_radius) or footprint_reach_share:
+    if footprint_spreads(footprint_radius, words_radius, footprint_reach_share):
         plain = cell_counts(grid, obs, feature_scaling=feature_scaling,
                             word_weighting=word_weighting, snap_distance=snap_distance,
                             vocabulary=vocab, source=source, word_scaling=word_scaling,

@@ -71,14 +71,17 @@ no distance limit) is its own cell s_t:
 S the modality's observed (source) cells and :math:`d^*(c) = \min_{s \in S} d(s, c)`: a cell
 equidistant from several sources is split equally between them, a cell no source reaches
 (another component of the free space) gets none. Observations sharing a cell share its Voronoi
-cell, as they share a footprint. The field of view (images) shapes only the footprint's part.
-Each row still sums to 1 (:math:`(1 - e) + e`), so the likelihood is the same tempered product
-over :math:`w^e` and everything above -- the weighted counts, the factored counts, the model,
-the samplers and the variational updates -- holds unchanged. Why: the footprint reaches a
-radius, and on an open plan the borders between places lie in space no footprint reaches, where
-the Potts prior alone draws them (the shortest border that keeps the footprints apart); the
-reach share puts a little of each place's evidence up to the border half-way to the next
-observation (:func:`voronoi_weights`).
+cell, as they share a footprint. The sources are where observations were placed, whatever they
+hold: a placed observation whose counts are all zero (an utterance without words, an image
+scaled to nothing) still claims its Voronoi cell, shrinking its neighbours', and brings no
+evidence to it (its counts times any weight are zero). The field of view (images) shapes only
+the footprint's part. Each row still sums to 1 (:math:`(1 - e) + e`), so the likelihood is the
+same tempered product over :math:`w^e` and everything above -- the weighted counts, the factored
+counts, the model, the samplers and the variational updates -- holds unchanged. Why: the
+footprint reaches a radius, and on an open plan the borders between places lie in space no
+footprint reaches, where the Potts prior alone draws them (the shortest border that keeps the
+footprints apart); the reach share puts a little of each place's evidence up to the border
+half-way to the next observation (:func:`voronoi_weights`).
 
 How :math:`d^*` and the ties are found: one multi-source Dijkstra pass (``min_only``) gives
 :math:`d^*(c)` and one nearest source per cell; an edge p -> c of length l is *tight* where
@@ -106,6 +109,7 @@ from typing import TYPE_CHECKING, Literal, TypeVar
 import numpy as np
 
 from spcopyro._util.context import set_within
+from spcopyro.config import is_number
 from spcopyro.maps.grid import OccupancyGrid
 
 if TYPE_CHECKING:  # scipy.sparse is imported where a footprint is built (0.3 s of every fit else)
@@ -208,16 +212,13 @@ def free_cell_graph(grid: OccupancyGrid) -> sparse.csr_matrix:
 
 
 def _check_share(share: float) -> None:
-    if not (
-        isinstance(share, (int, float)) and not isinstance(share, bool) and math.isfinite(share)
-        and 0 <= share < 1
-    ):  # fmt: skip
+    if not (is_number(share) and math.isfinite(share) and 0 <= share < 1):
         raise ValueError(f"footprint_reach_share={share!r}: must be a number in [0, 1) "
                          "(each observation's share over its Voronoi cell; 0: off)")  # fmt: skip
 
 
 def _check(radius: float, kernel: str, fov: float | None) -> None:
-    if not (isinstance(radius, (int, float)) and math.isfinite(radius) and radius >= 0):
+    if not (is_number(radius) and math.isfinite(radius) and radius >= 0):
         raise ValueError(f"footprint_radius={radius!r}: must be a finite number of metres >= 0")
     if kernel not in FOOTPRINT_KERNELS:
         raise ValueError(f"footprint_kernel={kernel!r}: must be one of {FOOTPRINT_KERNELS}")
@@ -244,11 +245,12 @@ def footprint_weights(
     the observation's Voronoi cell among ``cells`` (:func:`voronoi_weights`). The arguments
     are :func:`disc_weights`'; e = 0 returns its weights as they are."""
     _check_share(reach_share)
+    if reach_share and graph is None:  # built once, for the disc's searches and the Voronoi's
+        graph = free_cell_graph(grid)
     weights = disc_weights(grid, cells, radius, kernel, yaw=yaw, fov=fov, graph=graph,
                            advance=advance)  # fmt: skip  # [T, N]
     if not reach_share:
         return weights
-    graph = free_cell_graph(grid) if graph is None else graph
     mixed = (1.0 - reach_share) * weights + reach_share * voronoi_weights(grid, cells, graph)
     mixed = mixed.tocsr()  # [T, N]
     mixed.eliminate_zeros()
@@ -392,10 +394,10 @@ def voronoi_weights(
         (np.ones(int(tight.sum())), (c[tight], p[tight])), shape=(n, n)
     )
     ties = first  # [N, S] 0/1: the sources attaining d*(c), grown to the least fixed point
-    while True:
-        grown = (first + before @ ties).tocsr()  # [N, S]
+    while True:  # ties holds first from the start, so first need not be added again
+        grown = (ties + before @ ties).tocsr()  # [N, S]
         grown.data[:] = 1.0
-        if grown.nnz == ties.nnz:  # monotone: nothing added, the fixed point
+        if grown.nnz == ties.nnz:  # grown holds ties: nothing added, the fixed point
             break
         ties = grown
     share = sparse.diags(1.0 / np.maximum(np.asarray(ties.sum(axis=1)).ravel(), 1.0)) @ ties
