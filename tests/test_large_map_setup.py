@@ -1,5 +1,6 @@
-"""A fit's setup on a large map: the footprint counts spread once per fit, and a progress bar
-while they are spread (docs/variational.md, "From spcopyro fit on a large map")."""
+"""A fit's setup: its summary counts the observations as its model data do (the same snap
+distance, the footprint counts spread once per fit), and on a large map a progress bar while
+they are spread (docs/variational.md, "From spcopyro fit on a large map")."""
 
 from __future__ import annotations
 
@@ -12,7 +13,7 @@ import spcopyro._util.progress as progress_module
 import spcopyro.data.counts as counts_module
 from spcopyro.cli.main import main
 from spcopyro.config import preset
-from spcopyro.data import prepared_cell_counts
+from spcopyro.data import DEFAULT_SNAP_DISTANCE, prepared_cell_counts
 from spcopyro.data.footprint import shared_footprints
 from spcopyro.data.model_grid import model_house
 from spcopyro.synthetic import HouseSpec, make_house
@@ -62,6 +63,44 @@ def test_fit_spreads_the_footprints_once(
     model = model_house(make_house(seed=0, spec=HouseSpec.embedded()), data.cell_size)
     fresh = prepared_cell_counts(model.grid, model.observations, data, warn=False)
     assert f"; {len(fresh.cells)} within their 0.75 m footprints" in line
+
+
+@pytest.mark.parametrize("snap", [0.0, DEFAULT_SNAP_DISTANCE])
+def test_the_summary_places_the_observations_with_the_fit_s_snap_distance(snap: float) -> None:
+    """The summary's placement and observed-cells lines are the fit's own counts' under its
+    snap distance: an image moved onto a wall cell beside free space is left out with snap
+    distance 0 (as the fit leaves it out, and warns) and snapped with the default. The summary
+    placed the observations with the default 0.25 m whatever the fit's ``--snap-distance``
+    (room1dk5, ``--snap-distance 0.05``: "15 snapped, 0 unplaced (snap distance 0.25 m)" beside
+    the fit's warning that 10 images were left out)."""
+    from spcopyro.cli.common import _summary
+    from spcopyro.maps.grid import OCCUPIED
+
+    house = make_house(seed=0, spec=HouseSpec.embedded())
+    grid, obs = house.grid, house.observations
+    walls = grid.occupancy == OCCUPIED  # [H, W]
+    beside = np.zeros_like(walls)  # [H, W] a wall cell with a free 4-neighbour
+    beside[1:] |= grid.free[:-1]
+    beside[:-1] |= grid.free[1:]
+    beside[:, 1:] |= grid.free[:, :-1]
+    beside[:, :-1] |= grid.free[:, 1:]
+    wall = np.argwhere(walls & beside)[0]  # [2] row, col
+    image_xy = obs.image_xy.copy()  # [T, 2]
+    image_xy[0] = grid.cell_to_world(wall[None])[0]
+    house = dataclasses.replace(house, observations=dataclasses.replace(obs, image_xy=image_xy))
+    data = dataclasses.replace(preset("paper-dp").data, snap_distance=snap)
+    counts = prepared_cell_counts(house.grid, house.observations, data, warn=False)
+    p = counts.placement
+    assert (p.images_snapped, p.images_unplaced) == ((0, 1) if snap == 0 else (1, 0))
+    lines = _summary(house, warn=False, feature_scaling=data.feature_scaling, preparation=data)
+    placement = next(x for x in lines.splitlines() if x.startswith("placement"))
+    assert placement.startswith(
+        f"placement        images: {p.images_on_free} on free cells, {p.images_snapped} "
+        f"snapped, {p.images_unplaced} unplaced;"
+    )
+    assert f"(snap distance {snap} m)" in placement
+    observed = next(x for x in lines.splitlines() if x.startswith("observed cells"))
+    assert observed == f"observed cells   {len(counts.cells)} (where observations were placed)"
 
 
 def test_shared_footprints_reuses_only_the_same_inputs(spreads: list[int]) -> None:

@@ -19,6 +19,7 @@ from spcopyro._util.arguments import integer_at_least as _integer_at_least
 from spcopyro._util.messages import plural
 from spcopyro._util.threads import AUTO
 from spcopyro.data import (
+    DEFAULT_SNAP_DISTANCE,
     House,
     cell_counts,
     find_dataset_root,
@@ -178,15 +179,18 @@ def _summary(
 ) -> str:
     """The house's summary lines; ``warn=False`` when the fit will count (and warn) again,
     ``feature_scaling`` the run's (so a bad count is told under the scaling it has there),
-    ``preparation`` the run's: with a footprint radius, the cells the footprints reach (the
+    ``preparation`` the run's: the observations are placed with its snap distance, as the fit
+    places them (the placement line counted them at the default 0.25 m whatever the fit's
+    ``--snap-distance``), and with a footprint radius, the cells the footprints reach (the
     fit's observed cells, as ``concepts.json`` counts them) are given beside the cells where
     observations were placed."""
     from spcopyro.maps.free_space import no_free_cell_reason
 
     free = house.grid.num_free > 0  # else every observation would be listed unplaced
+    snap = DEFAULT_SNAP_DISTANCE if preparation is None else preparation.snap_distance
     counts = cell_counts(
         house.grid, house.observations, source=house.source, warn=warn and free,
-        feature_scaling=feature_scaling,
+        feature_scaling=feature_scaling, snap_distance=snap,
     )  # fmt: skip
     obs = house.observations
     grid, source = house.grid, house.grid.coarsened_from
