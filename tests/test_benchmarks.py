@@ -725,6 +725,26 @@ def test_an_option_given_explicitly_wins_over_quick(script):
     assert script("bench_cli").quick_or(None, True, 1, 2) == 1
 
 
+@pytest.mark.skipif(sys.version_info < (3, 11), reason="PYTHONSAFEPATH is Python 3.11's")
+def test_fixed_cost_times_its_own_checkout_from_any_working_directory(tmp_path, script):
+    """fixed_cost.py's timed processes import the script's own checkout's ``spcopyro`` from a
+    working directory that holds another (the root of another checkout): ``python -m spcopyro``
+    and ``python -c`` put the working directory before ``PYTHONPATH``, so a worktree's script of
+    the code before a change, run from this checkout's root, timed this checkout's package."""
+    decoy = tmp_path / "spcopyro"
+    decoy.mkdir()
+    (decoy / "__init__.py").write_text('raise ImportError("the working directory\'s copy")\n')
+    env = script("fixed_cost")._environment()
+    printed = []
+    for program in (["-c", "import spcopyro; print(spcopyro.__file__)"],
+                    ["-m", "spcopyro", "--help"]):  # fmt: skip
+        done = subprocess.run([sys.executable, *program], cwd=tmp_path, env=env,
+                              capture_output=True, text=True, timeout=120)  # fmt: skip
+        assert done.returncode == 0, done.stderr
+        printed.append(done.stdout)
+    assert Path(printed[0].strip()) == ROOT / "spcopyro" / "__init__.py"
+
+
 UNKNOWN_HOUSES = [
     ("end_to_end", ["--houses", "bogus", "--sweeps", "5", "--no-startup"]),
     ("merge_moves", ["--public", "bogus", "--sweeps", "4"]),
