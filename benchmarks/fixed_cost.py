@@ -107,9 +107,10 @@ for this checkout's ``spcopyro``, so every process compiles all of its modules a
 def _environment() -> dict[str, str]:
     """The timed processes' environment: this one's, ``CI=1``, this checkout first on
     ``PYTHONPATH``, and :data:`BYTECODE_VARIABLE` removed (the bytecode cache a user has).
-    ``PYTHONSAFEPATH=1`` (Python 3.11's ``-P``): ``python -m spcopyro`` and ``python -c`` put
-    the working directory before ``PYTHONPATH``, so the script of another checkout (a worktree
-    of the code before a change) run from this one's root timed this one's package."""
+    ``PYTHONSAFEPATH=1`` (Python 3.11's ``-P``; Python 3.10 ignores it, so there the guard does
+    nothing): ``python -m spcopyro`` and ``python -c`` put the working directory before
+    ``PYTHONPATH``, so the script of another checkout (a worktree of the code before a change)
+    run from this one's root timed this one's package."""
     path = os.pathsep.join(p for p in (str(ROOT), os.environ.get("PYTHONPATH")) if p)
     env = {**os.environ, "CI": "1", "PYTHONPATH": path, "PYTHONSAFEPATH": "1"}
     env.pop(BYTECODE_VARIABLE, None)

@@ -173,19 +173,23 @@ def test_the_floor100_note_is_silent_where_floor100_keeps_most_of_the_rows():
 
 def test_fit_s_placement_line_says_how_many_images_the_scaling_left_out(tmp_path):
     """``fit``'s printed "placement" line read "images: 4 on free cells" where floor100 had
-    left three of them with nothing: the count the placement report carries is on that line."""
+    left three of them with nothing: the count the placement report carries is on that line.
+    The scaling is the preparation's, as the fit's (the summary took it apart from the
+    preparation, so a caller could count under one scaling and place under another)."""
     from spcopyro.cli.common import _summary
+    from spcopyro.config import DataPreparation
     from spcopyro.data.dataset import House
 
     house = House("flat", _grid(), _observations(_flat_and_peaked()), source=tmp_path)
+    floor100 = DataPreparation(feature_scaling="floor100")  # the auto preset's scaling
     placement = [
         line
-        for line in _summary(house, warn=False, feature_scaling="floor100").splitlines()
+        for line in _summary(house, warn=False, preparation=floor100).splitlines()
         if line.startswith("placement")
     ]
     assert len(placement) == 1
     assert "; 3 of 4 images left out" in placement[0]
-    kept = _summary(house, warn=False, feature_scaling="probability")
+    kept = _summary(house, warn=False, preparation=DataPreparation(feature_scaling="probability"))
     assert "left out" not in kept
 
 

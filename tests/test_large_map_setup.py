@@ -92,7 +92,7 @@ def test_the_summary_places_the_observations_with_the_fit_s_snap_distance(snap: 
     counts = prepared_cell_counts(house.grid, house.observations, data, warn=False)
     p = counts.placement
     assert (p.images_snapped, p.images_unplaced) == ((0, 1) if snap == 0 else (1, 0))
-    lines = _summary(house, warn=False, feature_scaling=data.feature_scaling, preparation=data)
+    lines = _summary(house, warn=False, preparation=data)
     placement = next(x for x in lines.splitlines() if x.startswith("placement"))
     assert placement.startswith(
         f"placement        images: {p.images_on_free} on free cells, {p.images_snapped} "

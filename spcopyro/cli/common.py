@@ -18,8 +18,8 @@ from typing import TYPE_CHECKING, NoReturn
 from spcopyro._util.arguments import integer_at_least as _integer_at_least
 from spcopyro._util.messages import plural
 from spcopyro._util.threads import AUTO
+from spcopyro.config import DataPreparation
 from spcopyro.data import (
-    DEFAULT_SNAP_DISTANCE,
     House,
     cell_counts,
     find_dataset_root,
@@ -29,7 +29,6 @@ from spcopyro.data import (
 )
 
 if TYPE_CHECKING:
-    from spcopyro.config import DataPreparation
     from spcopyro.data.counts import CellCounts
     from spcopyro.maps import OccupancyGrid
     from spcopyro.results.result import SpCoResult
@@ -174,23 +173,23 @@ def refuse_fit_files(result_dir: str, out: str, targets: list[Path]) -> None:
 def _summary(
     house: House,
     warn: bool = True,
-    feature_scaling: object = "probability",
     preparation: DataPreparation | None = None,
 ) -> str:
     """The house's summary lines; ``warn=False`` when the fit will count (and warn) again,
-    ``feature_scaling`` the run's (so a bad count is told under the scaling it has there),
-    ``preparation`` the run's: the observations are placed with its snap distance, as the fit
-    places them (the placement line counted them at the default 0.25 m whatever the fit's
-    ``--snap-distance``), and with a footprint radius, the cells the footprints reach (the
-    fit's observed cells, as ``concepts.json`` counts them) are given beside the cells where
-    observations were placed."""
+    ``preparation`` the run's (None: :class:`~spcopyro.config.DataPreparation`'s defaults):
+    the observations are counted under its feature scaling (so a bad count is told under the
+    scaling it has there) and placed with its snap distance, as the fit places them (the
+    placement line counted them at the default 0.25 m whatever the fit's ``--snap-distance``),
+    and with a footprint radius, the cells the footprints reach (the fit's observed cells, as
+    ``concepts.json`` counts them) are given beside the cells where observations were
+    placed."""
     from spcopyro.maps.free_space import no_free_cell_reason
 
+    prep = DataPreparation() if preparation is None else preparation
     free = house.grid.num_free > 0  # else every observation would be listed unplaced
-    snap = DEFAULT_SNAP_DISTANCE if preparation is None else preparation.snap_distance
     counts = cell_counts(
         house.grid, house.observations, source=house.source, warn=warn and free,
-        feature_scaling=feature_scaling, snap_distance=snap,
+        feature_scaling=prep.feature_scaling, snap_distance=prep.snap_distance,
     )  # fmt: skip
     obs = house.observations
     grid, source = house.grid, house.grid.coarsened_from
@@ -212,7 +211,7 @@ def _summary(
         else f"utterances       none (a house of images only) in {trials}",
     ]
     if free:
-        lines += _placement_lines(house, counts, preparation)
+        lines += _placement_lines(house, counts, prep)
     else:  # `fit` refuses such a map first (spcopyro.maps.check_free_cells), says why
         lines.append(
             f"no free cell     the map {(source or grid).source or ''} has no free cell, nothing "
@@ -225,15 +224,12 @@ def _summary(
     return "\n".join(lines)
 
 
-def _placement_lines(
-    house: House, counts: CellCounts, preparation: DataPreparation | None
-) -> list[str]:
+def _placement_lines(house: House, counts: CellCounts, prep: DataPreparation) -> list[str]:
     """:func:`_summary`'s lines of a map with free cells: the observed cells (those the
     footprints reach too, given a footprint radius; words counted at their cell named as the
     data line names them, ``words at cell``) and where the observations were placed."""
     observed = f"{len(counts.cells)} (where observations were placed)"
-    prep = preparation
-    if prep is not None and prep.spreads:
+    if prep.spreads:
         spread = prepared_cell_counts(house.grid, house.observations, prep, source=house.source,
                                       warn=False)  # fmt: skip
         radius, words = prep.footprint_radius, prep.words_radius

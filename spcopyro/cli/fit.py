@@ -207,8 +207,7 @@ def _fit_staged(job: FitJob) -> int:
     config = settings.model
     # The config's warnings are logged by prepare_model_data (main prints them once); the
     # fit's own counts say what is left out (once), under the run's feature scaling.
-    print(_summary(house, warn=False, feature_scaling=settings.data.feature_scaling,
-                   preparation=settings.data))  # fmt: skip
+    print(_summary(house, warn=False, preparation=settings.data))
     # a house of words only: the model in effect, words only; config.json keeps use_images
     print(model_line(config, settings.preset, images_missing=not house.observations.num_images))
     note = word_weighting_note(args, house, settings.data.word_weighting)
