@@ -147,7 +147,8 @@ def preset_inference(name: str) -> dict[str, object]:
 
 def is_number(value: object) -> bool:
     """Whether ``value`` is an int or a float, not a bool (True is an int): the number check
-    of every validated field here and of the footprint's own arguments."""
+    of every validated field here, of the footprint's own arguments, of a feature scaling, of a
+    map's yaml and of spcoa's pair distance."""
     return isinstance(value, (int, float)) and not isinstance(value, bool)
 
 

@@ -260,6 +260,16 @@ def test_footprint_weights_refuse_a_bad_radius_as_the_preparation_does(bad):
         footprint_weights(tiny_grid(["..."]), np.array([0]), bad)
 
 
+@pytest.mark.parametrize("bad", [True, 0.0, 400.0, float("nan"), "90"])
+def test_footprint_weights_refuse_a_bad_fov_as_the_preparation_does(bad):
+    """footprint_weights' own fov check is config.is_number's, DataPreparation's: True (an int)
+    passed it as a field of view of 1 degree."""
+    with pytest.raises(ValueError, match="footprint_fov"):
+        DataPreparation(footprint_fov=bad)
+    with pytest.raises(ValueError, match=rf"footprint_fov={bad!r}: must be None or degrees"):
+        footprint_weights(tiny_grid(["..."]), np.array([0]), 0.5, yaw=np.zeros(1), fov=bad)
+
+
 # -- the per-cell counts ---------------------------------------------------------------------------
 
 

@@ -34,6 +34,7 @@ from spcopyro.config import (
     FootprintKernel,
     WordWeightingSetting,
     footprint_spreads,
+    is_number,
     words_footprint_radius,
 )
 from spcopyro.data.footprint import (
@@ -92,12 +93,7 @@ def scale_features(features: np.ndarray, scaling: FeatureScaling) -> np.ndarray:
         if scaling == "floor100":
             with np.errstate(over="ignore"):  # inf is reported by check_count_totals
                 return np.floor(100.0 * f)
-    elif (
-        isinstance(scaling, (int, float))
-        and not isinstance(scaling, bool)
-        and math.isfinite(scaling)
-        and scaling > 0
-    ):
+    elif is_number(scaling) and math.isfinite(scaling) and scaling > 0:
         with np.errstate(over="ignore"):
             return float(scaling) * f
     raise ValueError(

@@ -222,9 +222,7 @@ def _check(radius: float, kernel: str, fov: float | None) -> None:
         raise ValueError(f"footprint_radius={radius!r}: must be a finite number of metres >= 0")
     if kernel not in FOOTPRINT_KERNELS:
         raise ValueError(f"footprint_kernel={kernel!r}: must be one of {FOOTPRINT_KERNELS}")
-    if fov is not None and not (
-        isinstance(fov, (int, float)) and math.isfinite(fov) and 0 < fov <= 360
-    ):
+    if fov is not None and not (is_number(fov) and math.isfinite(fov) and 0 < fov <= 360):
         raise ValueError(f"footprint_fov={fov!r}: must be None or degrees in (0, 360]")
 
 

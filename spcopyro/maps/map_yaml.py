@@ -22,6 +22,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from spcopyro._util.messages import echo, shown_bytes
+from spcopyro.config import is_number
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -137,10 +138,6 @@ def _close_key(key: Any, known: tuple[str, ...] = _KNOWN_KEYS) -> str | None:
     return close[0] if close else None
 
 
-def _is_number(value: Any) -> bool:
-    return isinstance(value, (int, float)) and not isinstance(value, bool)
-
-
 def _is_nan(value: Any) -> bool:
     """``nan``, ``-nan``, ``.nan`` (any case) as yaml reads them: a float nan or the text."""
     if isinstance(value, float):
@@ -243,7 +240,7 @@ def _check_thresholds(doc: dict[str, Any], where: Callable[[str], str], warn: bo
     ``warn``)."""
     for key in ("occupied_thresh", "free_thresh"):
         value = doc[key]
-        if not _is_number(value) or math.isnan(value):
+        if not is_number(value) or math.isnan(value):
             raise MapFormatError(
                 f"{where(key)}: key {key!r} must be a number (a probability in [0, 1]), "
                 f"got {echo(value)}"
@@ -418,7 +415,7 @@ def read_map_yaml(
         )
 
     resolution = doc["resolution"]
-    if not _is_number(resolution) or not (math.isfinite(resolution) and resolution > 0):
+    if not is_number(resolution) or not (math.isfinite(resolution) and resolution > 0):
         raise bad("resolution", "a positive finite number")
     low, high = PLAUSIBLE_RESOLUTION
     if warn and not low <= resolution <= high:
@@ -435,7 +432,7 @@ def read_map_yaml(
     if (
         not isinstance(origin, list)
         or len(origin) != 3
-        or not all(_is_number(v) and math.isfinite(v) for v in origin)
+        or not all(is_number(v) and math.isfinite(v) for v in origin)
     ):
         error = bad("origin", "a list of 3 finite numbers [x, y, yaw]")
         if isinstance(origin, list) and len(origin) == 3 and _is_nan(origin[2]):

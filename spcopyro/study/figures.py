@@ -27,7 +27,7 @@ from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 from spcopyro._util.outputs import replace_figure
 from spcopyro.figures.fonts import any_script, quiet_glyph_warnings
 from spcopyro.study.maps import row_names
-from spcopyro.study.table import is_number
+from spcopyro.study.table import is_finite_number
 
 __all__ = ["QUALITY_TIME_FILE", "WORD_SCORE", "quality_time_figure", "write_quality_time"]
 
@@ -63,7 +63,12 @@ def _timed(rows, score: str, time: str) -> list[dict[str, object]]:
     placed = []
     for row in rows:
         seconds, value = row.get(time), row.get(score)
-        if row.get("status") == "ok" and is_number(seconds) and seconds > 0 and is_number(value):
+        if (
+            row.get("status") == "ok"
+            and is_finite_number(seconds)
+            and seconds > 0
+            and is_finite_number(value)
+        ):
             placed.append(row)
     return placed
 

@@ -22,7 +22,7 @@ from spcopyro._util.messages import fixed, plural
 from spcopyro._util.outputs import replace_text
 from spcopyro.study.cell_warnings import read_warnings
 from spcopyro.study.evaluate import SCORES, WARNINGS
-from spcopyro.study.table import is_number
+from spcopyro.study.table import is_finite_number
 
 __all__ = [
     "REPORT_SCORES", "report_markdown", "summary_rows", "table_cell", "warnings_section",
@@ -51,7 +51,7 @@ def summary_rows(
         entry: dict[str, object] = dict(zip(GROUP, group, strict=True))
         entry.update(n=len(ok), failed=len(members) - len(ok))
         for score in scores:
-            values = [float(r[score]) for r in ok if is_number(r.get(score))]  # type: ignore[arg-type]
+            values = [float(r[score]) for r in ok if is_finite_number(r.get(score))]  # type: ignore[arg-type]
             if values:
                 array = np.asarray(values)
                 sd = float(array.std(ddof=1)) if array.size > 1 else math.nan

@@ -34,8 +34,8 @@ from spcopyro.study.cells import Cell
 from spcopyro.study.evaluate import SCORES, STATUS_COLUMNS, WARNINGS
 
 __all__ = [
-    "COLUMNS", "INPUT_COLUMNS", "PARQUET", "CellStore", "is_number", "read_parquet", "read_table",
-    "table_rows", "write_parquet", "write_table",
+    "COLUMNS", "INPUT_COLUMNS", "PARQUET", "CellStore", "is_finite_number", "read_parquet",
+    "read_table", "table_rows", "write_parquet", "write_table",
 ]  # fmt: skip
 
 INPUT_COLUMNS = (
@@ -97,7 +97,7 @@ class CellStore:
         os.replace(staging, self.cells / f"{key}.json")
 
 
-def is_number(value: object) -> bool:
+def is_finite_number(value: object) -> bool:
     """Whether a table value is a finite number (a score that applied; not a bool, None or
     text)."""
     return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
