@@ -2,7 +2,7 @@
 
     python benchmarks/coarse_variants.py [--sweeps 2000] [--seeds 0] [--variants NAME ...]
         [--out benchmarks/coarse_variants.json] [--quick]
-        [--synthetic [--open-plan-seeds 10] [--synthetic-seeds 3]]
+        [--synthetic [--open-plan-seeds 10] [--synthetic-seeds 3] [--kinds KIND ...]]
 
 Issue 21's study of 2026-12-06 (docs/real_houses.md, "Variants of `coarse` on the held-out
 words"): does a setting of ``coarse`` keep the ARI targets and reach ``paper-dp``'s held-out word
@@ -39,12 +39,22 @@ it at s + f (f = 0: its fits). Stored under ``"synthetic"`` of each variant and 
 public results and their resume untouched; one already there is skipped), a synthetic house's
 baselines and oracle, the same for every variant and seed, once under
 ``"synthetic_baselines"``; prints one table, a row a variant over its fit seeds, each target
-PASS or FAIL.
+PASS or FAIL. ``--kinds``: only those of ``open-plan``, ``sparse``, ``dense`` and ``simulated``
+(default all); a house already in the JSON is skipped, so a later run adds the other kinds, and a
+variant's summary is over every house it has (a kind it has none of shows ``-``).
+
+The reach-share variants (issue 21's open plans, 2026-12-06: ``footprint_reach_share``, a
+share of each observation over its geodesic Voronoi cell) come in three forms: the default's two
+stages with the share in the first (the refinement prepares the data as ``auto`` does, share
+0), the first stage alone (``--refine never``, :data:`real_houses.UNREFINED`), and the share in
+both stages (:data:`STAGE_TWO`: the refinement's settings patched for the variant's fits, a
+screening, not an option of the library).
 """
 
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import logging
 import sys
@@ -58,9 +68,15 @@ from bench_cli import COUNT, INDEX, dataset_root, quick_or, results_path, run_ma
 from spcopyro.data import load_house
 from spcopyro.experiments.public_truth import public_truth
 from spcopyro.experiments.table import PUBLIC_CATEGORIES
+from spcopyro.fit import refine
 from spcopyro.results.refined import coarse_stage
 
 BASE = "coarse"
+STAGE_TWO = "stage two"
+"""An override of :data:`VARIANTS` that is no setting: settings the refinement's own
+(:func:`spcopyro.fit.refine.refined_settings`) are replaced with for the variant's fits
+(:func:`variant`)."""
+REACH = "footprint_reach_share"
 VARIANTS: dict[str, tuple[str, dict[str, object]]] = {
     "coarse": (BASE, {}),
     "paper-dp": ("paper-dp", {}),
@@ -79,19 +95,52 @@ VARIANTS: dict[str, tuple[str, dict[str, object]]] = {
     "gamma 3.5": (BASE, {"gamma": 3.5}),
     "alpha 1e5": (BASE, {"alpha": 1e5}),
     "words-at-cell": (BASE, {"word_footprint_radius": 0.0}),
+    "coarse, --refine never": (rh.UNREFINED, {}),
+    "reach 0.25": (BASE, {REACH: 0.25}),
+    "reach 0.5": (BASE, {REACH: 0.5}),
+    "reach 0.25, --refine never": (rh.UNREFINED, {REACH: 0.25}),
+    "reach 0.5, --refine never": (rh.UNREFINED, {REACH: 0.5}),
+    "reach 0.25, stage two too": (BASE, {REACH: 0.25, STAGE_TWO: {REACH: 0.25}}),
+    "reach 0.1": (BASE, {REACH: 0.1}),
+    "reach 0.1, --refine never": (rh.UNREFINED, {REACH: 0.1}),
+    "reach 0.2": (BASE, {REACH: 0.2}),
 }
 """Name -> (preset, overrides), in the order run: ``coarse`` and ``paper-dp`` first (the
 references at the same sweeps), then the variants by the prior that they could raise held-out
-top-1 (finer concepts around where words were said) without losing the places."""
+top-1 (finer concepts around where words were said) without losing the places; the reach
+shares last (the open plans' borders)."""
+
+
+@contextlib.contextmanager
+def variant(name: str):
+    """``(preset, overrides)`` of variant ``name`` for fits made within: its :data:`STAGE_TWO`
+    settings, if any, taken out of the overrides and put into every refinement's settings
+    (``refine.refined_settings`` patched, restored on leaving)."""
+    base, overrides = VARIANTS[name]
+    overrides = dict(overrides)
+    stage_two = overrides.pop(STAGE_TWO, None)
+    if not stage_two:
+        yield base, overrides
+        return
+    original = refine.refined_settings
+
+    def refined_settings(settings, model_cells: int, map_cells: int):
+        return original(settings, model_cells, map_cells).replace(**stage_two)
+
+    refine.refined_settings = refined_settings
+    try:
+        yield base, overrides
+    finally:
+        refine.refined_settings = original
 
 
 def public_scores(house, truth: np.ndarray, name: str, sweeps: int, seed: int) -> dict:
     """ARI, largest share, concepts >= 1 % of the variant's fit on every trial
     (``real_houses.fit_result``: its preset's settings with the overrides, and the preset's
     recommended inference settings), on the map's cells; whether it was refined."""
-    base, overrides = VARIANTS[name]
     start = time.perf_counter()
-    result = rh.fit_result(house, base, sweeps, seed, **overrides)[0]
+    with variant(name) as (base, overrides):
+        result = rh.fit_result(house, base, sweeps, seed, **overrides)[0]
     labels = rh.on_map(result, house)
     refined = coarse_stage(result.inference) is not None
     return {**rh.scores(labels, truth, house.grid.free), "refined": refined,
@@ -101,9 +150,9 @@ def public_scores(house, truth: np.ndarray, name: str, sweeps: int, seed: int) -
 def heldout_scores(house, name: str, sweeps: int, seed: int) -> dict:
     """Held-out word scores, every trial held out in turn (``real_houses.heldout_fold_scores``,
     pooled by ``real_houses.fold_summary``)."""
-    base, overrides = VARIANTS[name]
-    model = {name: rh.preset_model(base, sweeps, seed, **overrides)}
-    return rh.fold_summary(rh.heldout_fold_scores(house, model)[name])
+    with variant(name) as (base, overrides):
+        model = {name: rh.preset_model(base, sweeps, seed, **overrides)}
+        return rh.fold_summary(rh.heldout_fold_scores(house, model)[name])
 
 
 def nearest_ari(houses: dict, truths: dict[str, np.ndarray]) -> float:
@@ -198,12 +247,18 @@ SIMULATED_TARGET = 0.9
 GEOMETRY = ("F geometry 1 m", "F geometry 2 m")
 
 
-def synthetic_keys(open_plan_seeds: int, synthetic_seeds: int, maps: list[str]) -> list[str]:
+KINDS = (*rh.SYNTHETIC, "simulated")
+"""The kinds of house of ``--synthetic`` (``--kinds``)."""
+
+
+def synthetic_keys(
+    open_plan_seeds: int, synthetic_seeds: int, maps: list[str], kinds: tuple[str, ...] = KINDS
+) -> list[str]:
     """The houses of ``--synthetic`` in real_houses.py's order: ``"KIND seed S"`` of its
-    synthetic kinds, then ``"simulated MAP"`` of each public map."""
-    return [f"{kind} seed {s}" for kind in rh.SYNTHETIC
+    synthetic kinds, then ``"simulated MAP"`` of each public map; only those of ``kinds``."""
+    return [f"{kind} seed {s}" for kind in rh.SYNTHETIC if kind in kinds
             for s in rh.synthetic_seeds(kind, open_plan_seeds, synthetic_seeds)] + [
-        f"simulated {m}" for m in maps]  # fmt: skip
+        f"simulated {m}" for m in maps if "simulated" in kinds]  # fmt: skip
 
 
 def synthetic_house(key: str):
@@ -216,9 +271,9 @@ def synthetic_scores(house, key: str, name: str, sweeps: int, seed: int) -> dict
     """The variant's fit (``real_houses.fit_preset``) on the synthetic house ``key`` (``"KIND
     seed S"``; ``house``) at fit seed S + ``seed``, scored against the house's own truth (row
     ``"variant"``; the baselines are the house's, :func:`house_baselines`)."""
-    base, overrides = VARIANTS[name]
     house_seed = int(key.rsplit(" seed ", 1)[1])
-    labels, seconds = rh.fit_preset(house, base, sweeps, house_seed + seed, **overrides)
+    with variant(name) as (base, overrides):
+        labels, seconds = rh.fit_preset(house, base, sweeps, house_seed + seed, **overrides)
     return {"variant": {**rh.scores(labels, house.truth, house.grid.free), "seconds": seconds}}
 
 
@@ -249,17 +304,17 @@ def adopted_baselines(report: dict) -> dict[str, dict]:
 def simulated_scores(public: PublicHouses, m: str, name: str, sweeps: int, seed: int) -> dict:
     """``real_houses.simulated_on`` of the variant on public map ``m``'s simulation (built once
     a map: :meth:`PublicHouses.simulation`) at one fit seed."""
-    base, overrides = VARIANTS[name]
     simulation = public.simulation(m)
-    rows = rh.simulated_on(public.house(m), sweeps, [seed], base, simulation=simulation,
-                           **overrides)  # fmt: skip
+    with variant(name) as (base, overrides):
+        rows = rh.simulated_on(public.house(m), sweeps, [seed], base, simulation=simulation,
+                               **overrides)  # fmt: skip
     return rows[f"fit seed {seed}"]
 
 
 def synthetic_summary(done: dict[str, dict], baselines: dict[str, dict]) -> dict[str, dict]:
     """Per synthetic kind the variant's mean ARI over its houses and their count (open-plan:
-    with (F)'s, the better door width's, and the oracle's, from the houses' ``baselines``);
-    ``"simulated"``: map -> ARI."""
+    with (F)'s, the better door width's, and the oracle's, from the houses' ``baselines``), a
+    kind with no house left out; ``"simulated"``: map -> ARI."""
 
     def mean(rows: list[dict], row: str) -> float:
         return float(np.mean([r[row]["ari"] for r in rows]))
@@ -267,6 +322,8 @@ def synthetic_summary(done: dict[str, dict], baselines: dict[str, dict]) -> dict
     out: dict[str, dict] = {}
     for kind in rh.SYNTHETIC:
         keys = [key for key in done if key.startswith(f"{kind} seed ")]
+        if not keys:
+            continue
         out[kind] = {"ari": mean([done[key] for key in keys], "variant"), "houses": len(keys)}
         if kind == "open-plan":
             rows = [baselines[key] for key in keys]
@@ -279,30 +336,38 @@ def synthetic_summary(done: dict[str, dict], baselines: dict[str, dict]) -> dict
 
 def synthetic_judged(summaries: list[dict]) -> dict[str, object]:
     """One variant's :func:`synthetic_summary` of each fit seed -> the means over them (a
-    kind's weighted by its houses; a map's over the seeds that fitted it) and the targets."""
+    kind's weighted by its houses; a map's over the seeds that fitted it) and the targets of
+    the kinds it has."""
     out: dict[str, object] = {}
     for kind in rh.SYNTHETIC:
-        weights = [s[kind]["houses"] for s in summaries]
+        summaries_of = [s for s in summaries if kind in s]
+        if not summaries_of:
+            continue
+        weights = [s[kind]["houses"] for s in summaries_of]
         keys = ("ari", "F", "oracle") if kind == "open-plan" else ("ari",)
-        out[kind] = {k: float(np.average([s[kind][k] for s in summaries], weights=weights))
+        out[kind] = {k: float(np.average([s[kind][k] for s in summaries_of], weights=weights))
                      for k in keys} | {"houses": sum(weights)}  # fmt: skip
     maps = dict.fromkeys(m for s in summaries for m in s["simulated"])
     out["simulated"] = {m: float(np.mean([s["simulated"][m] for s in summaries
                                           if m in s["simulated"]])) for m in maps}  # fmt: skip
-    open_plan = out["open-plan"]
-    out["pass"] = {
-        "open-plan": open_plan["ari"] >= open_plan["F"] + OPEN_PLAN_MARGIN,
-        **{k: out[k]["ari"] >= bar for k, bar in SYNTHETIC_TARGETS.items()},
-        "simulated": all(v >= SIMULATED_TARGET for v in out["simulated"].values()),
-    }  # fmt: skip
+    judged: dict[str, bool] = {}
+    if "open-plan" in out:
+        judged["open-plan"] = out["open-plan"]["ari"] >= out["open-plan"]["F"] + OPEN_PLAN_MARGIN
+    judged |= {k: out[k]["ari"] >= bar for k, bar in SYNTHETIC_TARGETS.items() if k in out}
+    if out["simulated"]:
+        judged["simulated"] = all(v >= SIMULATED_TARGET for v in out["simulated"].values())
+    out["pass"] = judged
     return out
 
 
 def synthetic_markdown(report: dict) -> str:
     """A row a variant with synthetic results: its means over the fit seeds and each target."""
 
-    def verdict(ok: bool) -> str:
-        return "PASS" if ok else "FAIL"
+    def verdict(ok: bool | None) -> str:
+        return "-" if ok is None else "PASS" if ok else "FAIL"
+
+    def ari(kind: dict | None) -> str:
+        return "-" if kind is None else f"{kind['ari']:.3f} ({kind['houses']})"
 
     lines = [
         f"| variant (fit seeds) | open-plan mean ARI (houses) | (F) + {OPEN_PLAN_MARGIN:g} | "
@@ -317,14 +382,15 @@ def synthetic_markdown(report: dict) -> str:
         if not done:
             continue
         j = synthetic_judged(list(done.values()))
-        op, dense, sparse, ok = j["open-plan"], j["dense"], j["sparse"], j["pass"]
-        maps = ", ".join(f"{m} {v:.2f}" for m, v in j["simulated"].items())
+        op, ok = j.get("open-plan"), j["pass"]
+        bars = ("- | -" if op is None
+                else f"{op['F'] + OPEN_PLAN_MARGIN:.3f} | {op['oracle']:.3f}")  # fmt: skip
+        maps = ", ".join(f"{m} {v:.2f}" for m, v in j["simulated"].items()) or "-"
         lines.append(
-            f"| {name} ({', '.join(done)}) | {op['ari']:.3f} ({op['houses']}) | "
-            f"{op['F'] + OPEN_PLAN_MARGIN:.3f} | {op['oracle']:.3f} | "
-            f"{verdict(ok['open-plan'])} | {dense['ari']:.3f} ({dense['houses']}) | "
-            f"{verdict(ok['dense'])} | {sparse['ari']:.3f} ({sparse['houses']}) | "
-            f"{verdict(ok['sparse'])} | {maps} | {verdict(ok['simulated'])} |"
+            f"| {name} ({', '.join(done)}) | {ari(op)} | {bars} | "
+            f"{verdict(ok.get('open-plan'))} | {ari(j.get('dense'))} | "
+            f"{verdict(ok.get('dense'))} | {ari(j.get('sparse'))} | "
+            f"{verdict(ok.get('sparse'))} | {maps} | {verdict(ok.get('simulated'))} |"
         )
     return "\n".join(lines)
 
@@ -332,17 +398,17 @@ def synthetic_markdown(report: dict) -> str:
 def run_synthetic(args: argparse.Namespace, report: dict, out: Path, public: PublicHouses) -> None:
     """``--synthetic``: each variant and fit seed on the houses it was not tuned on (module
     docstring), into ``report["variants"][NAME]["seed S"]["synthetic"]``, written after every
-    house; a variant and seed whose synthetic results are complete is skipped."""
+    house; a house already there is skipped (a variant and seed with every house fitted)."""
     maps = list(PUBLIC_CATEGORIES)[: 1 if args.quick else None]
-    keys = synthetic_keys(args.open_plan_seeds, args.synthetic_seeds, maps)
+    keys = synthetic_keys(args.open_plan_seeds, args.synthetic_seeds, maps, tuple(args.kinds))
     baselines = adopted_baselines(report)
     for name in args.variants:
         for seed in args.seeds:
             row = report["variants"].setdefault(name, {}).setdefault(f"seed {seed}", {})
             record = row.setdefault("synthetic", {})
-            if "summary" in record:
-                continue
             done = record.setdefault("houses", {})
+            if "summary" in record and all(key in done for key in keys):
+                continue
             for key in keys:
                 if key in done:
                     continue
@@ -360,10 +426,10 @@ def run_synthetic(args: argparse.Namespace, report: dict, out: Path, public: Pub
                 print(f"{name} seed {seed} {key}: ARI {ari:.3f} ({seconds:.0f} s)",
                       file=sys.stderr, flush=True)  # fmt: skip
                 out.write_text(json.dumps(report, indent=1, default=float))
-            for key in keys:  # any missing (none but for a JSON cut short between them)
+            for key in done:  # any missing (none but for a JSON cut short between them)
                 if not key.startswith("simulated "):
                     house_baselines(baselines, key)
-            record["summary"] = synthetic_summary({key: done[key] for key in keys}, baselines)
+            record["summary"] = synthetic_summary(done, baselines)  # every house it has
             out.write_text(json.dumps(report, indent=1, default=float))
     print(f"# Variants of {BASE} on the houses not tuned on ({args.sweeps} sweeps)\n\n"
           f"{synthetic_markdown(report)}")  # fmt: skip
@@ -395,12 +461,15 @@ def main(argv: list[str] | None = None) -> int:
                         "seeds 0..n-1 (default 10, --quick: 1)")  # fmt: skip
     parser.add_argument("--synthetic-seeds", type=COUNT, help="with --synthetic: dense and "
                         "sparse seeds 0..n-1 (default 3, --quick: 1)")  # fmt: skip
+    parser.add_argument("--kinds", nargs="+", choices=KINDS, help="with --synthetic: only these "
+                        f"kinds of house (default all: {', '.join(KINDS)})")  # fmt: skip
     args = parser.parse_args(argv)
-    for option in ("open_plan_seeds", "synthetic_seeds"):
+    for option in ("open_plan_seeds", "synthetic_seeds", "kinds"):
         if getattr(args, option) is not None and not args.synthetic:
             parser.error(f"--{option.replace('_', '-')}: only with --synthetic")
     args.open_plan_seeds = quick_or(args.open_plan_seeds, args.quick, 1, 10)
     args.synthetic_seeds = quick_or(args.synthetic_seeds, args.quick, 1, 3)
+    args.kinds = args.kinds or list(KINDS)
     args.out = results_path(args.out, "coarse_variants", args.quick)
     args.sweeps = quick_or(args.sweeps, args.quick, 20, 2000)
     args.seeds = args.seeds or ([0] if args.quick or not args.synthetic else [0, 1, 2])

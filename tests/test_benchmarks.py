@@ -1687,3 +1687,52 @@ def test_coarse_variants_synthetic_reads_a_json_with_the_baselines_in_every_entr
     assert capsys.readouterr().out.replace(str(old), "OUT") == printed
     assert sorted(built["baseline_scores"]) == sorted(baselines)
     assert json.loads(old.read_text())["synthetic_baselines"] == baselines
+
+
+def test_coarse_variants_synthetic_kinds_add_houses_and_stage_two_patches_the_refinement(
+    script, monkeypatch, dataset_root, tmp_path, capsys
+):
+    """--kinds fits only those kinds of house; a later run with other kinds adds them to the
+    same variant and seed (the summary over every house it has, a kind without houses shown
+    as '-'). A variant's STAGE_TWO settings are the refinement's own for its fits only
+    (refine.refined_settings patched while it fits, restored after)."""
+    import numpy as np
+
+    from spcopyro.config import preset
+    from spcopyro.data import load_house
+
+    cv, rh = script("coarse_variants"), script("real_houses")
+    _stub_coarse_variants(cv, monkeypatch, dataset_root)
+    monkeypatch.setattr(cv, "load_house", load_house)
+    original = cv.refine.refined_settings
+    calls = []
+
+    def fit_preset(house, name, sweeps, seed, **overrides):
+        stage_two = cv.refine.refined_settings(preset("coarse", **overrides), 1, 4)
+        calls.append((name, overrides, stage_two.data.footprint_reach_share))
+        return house.truth, 0.0
+
+    monkeypatch.setattr(rh, "fit_preset", fit_preset)
+    out = tmp_path / "cv.json"
+    variants = ["--variants", "reach 0.25, stage two too", "reach 0.5, --refine never"]
+    argv = ["--quick", "--synthetic", "--open-plan-seeds", "2", "--seeds", "1", *variants,
+            "--out", str(out)]  # fmt: skip
+    assert cv.main([*argv, "--kinds", "open-plan"]) == 0
+    share = {"footprint_reach_share": 0.25}
+    assert calls == [("coarse", share, 0.25)] * 2 + [
+        (rh.UNREFINED, {"footprint_reach_share": 0.5}, 0.0)] * 2  # fmt: skip
+    assert cv.refine.refined_settings is original
+    record = json.loads(out.read_text())["variants"]["reach 0.25, stage two too"]["seed 1"]
+    assert list(record["synthetic"]["houses"]) == ["open-plan seed 0", "open-plan seed 1"]
+    assert list(record["synthetic"]["summary"]) == ["open-plan", "simulated"]
+    rows = [line for line in capsys.readouterr().out.splitlines() if line.startswith("| reach")]
+    assert len(rows) == 2 and all("| - | - |" in row and "PASS" in row for row in rows)
+    calls.clear()
+    assert cv.main([*argv, "--kinds", "dense"]) == 0
+    assert [c[0] for c in calls] == ["coarse", rh.UNREFINED]  # dense seed 0 alone
+    summary = json.loads(out.read_text())["variants"]["reach 0.25, stage two too"]["seed 1"][
+        "synthetic"]["summary"]  # fmt: skip
+    assert summary["open-plan"]["houses"] == 2 and summary["dense"]["ari"] == 1.0
+    assert np.isclose(summary["open-plan"]["ari"], 1.0)
+    with pytest.raises(SystemExit):
+        cv.main(["--quick", "--kinds", "dense", "--out", str(out)])  # only with --synthetic
