@@ -60,6 +60,7 @@ import logging
 import sys
 import time
 from pathlib import Path
+from unittest.mock import patch
 
 import numpy as np
 import real_houses as rh
@@ -119,19 +120,15 @@ def variant(name: str):
     base, overrides = VARIANTS[name]
     overrides = dict(overrides)
     stage_two = overrides.pop(STAGE_TWO, None)
-    if not stage_two:
-        yield base, overrides
-        return
     original = refine.refined_settings
-
-    def refined_settings(settings, model_cells: int, map_cells: int):
-        return original(settings, model_cells, map_cells).replace(**stage_two)
-
-    refine.refined_settings = refined_settings
-    try:
+    patched = (
+        patch.object(refine, "refined_settings",
+                     lambda settings, model_cells, map_cells: original(
+                         settings, model_cells, map_cells).replace(**stage_two))
+        if stage_two else contextlib.nullcontext()
+    )  # fmt: skip
+    with patched:
         yield base, overrides
-    finally:
-        refine.refined_settings = original
 
 
 def public_scores(house, truth: np.ndarray, name: str, sweeps: int, seed: int) -> dict:
