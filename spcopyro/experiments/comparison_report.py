@@ -48,7 +48,7 @@ from spcopyro.experiments.inference_comparison import (
 )
 from spcopyro.experiments.table import json_default
 from spcopyro.inference.protocol import options_for_start
-from spcopyro.results.concept_words import NO_WORDS, WORDS_NOT_MODELLED
+from spcopyro.results.concept_words import NO_WORDS, WORDS_NOT_MODELLED_NOTE
 
 
 def _mean_sd(values: list[float]) -> dict[str, float]:
@@ -407,9 +407,9 @@ def found_words(entries: Sequence[str], modelled: bool = True) -> str:
     for a fit that did not model its words (``modelled`` False: the record's
     ``words_modelled``), whose concepts list none, "words not modelled (use_words off)" once for
     the whole fit, as ``fit`` says it
-    (:data:`~spcopyro.results.concept_words.WORDS_NOT_MODELLED`)."""
+    (:data:`~spcopyro.results.concept_words.WORDS_NOT_MODELLED_NOTE`)."""
     if not modelled:
-        return f"words {WORDS_NOT_MODELLED}"
+        return WORDS_NOT_MODELLED_NOTE
     return "; ".join(NO_WORDS_SHOWN if w == HEARD_NOTHING else w for w in entries)
 
 

@@ -64,6 +64,7 @@ from spcopyro.results.concept_words import (
     ESTIMATED_WORDS,
     NO_WORDS,
     WORDS_NOT_MODELLED,
+    WORDS_NOT_MODELLED_NOTE,
     shown_top_words,
     words_modelled,
 )
@@ -226,7 +227,7 @@ def semantic_map_figure(
              else f"{ESTIMATED_WORDS} (")  # fmt: skip
     words += "x lift = p(word | concept) / p(word))"
     if not words_modelled(result):  # said once, here: no entry or label lists words
-        words = f"words {WORDS_NOT_MODELLED}"
+        words = WORDS_NOT_MODELLED_NOTE
     map_legend(axes[-1], handles, below=wide, columns=2, fontsize=7, frameon=False,
                title=f"concepts, largest first: {words}", title_fontsize=7)  # fmt: skip
     crowded = (

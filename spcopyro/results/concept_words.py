@@ -39,6 +39,7 @@ __all__ = [
     "MIN_LIFT",
     "NO_WORDS",
     "WORDS_NOT_MODELLED",
+    "WORDS_NOT_MODELLED_NOTE",
     "ESTIMATED_WORDS",
     "SPECK_SHARE",
     "SPECKS_NAMED",
@@ -71,6 +72,11 @@ WORDS_NOT_MODELLED = "not modelled (use_words off)"
 its concepts would be listed: ``fit``'s listing (``words: not modelled (use_words off)``), the
 semantic map's legend and labels, ``where`` (which also warns that its answer is the prior's)."""
 
+WORDS_NOT_MODELLED_NOTE = f"words {WORDS_NOT_MODELLED}"
+"""The same said of a whole fit's words in one place: a concept's ``words_note``
+(:func:`words_note`), the semantic map's legend title and the comparison report's "Concepts
+found" line."""
+
 
 def words_modelled(result: object) -> bool:
     """Whether ``result``'s fit modelled its words: its config's
@@ -88,7 +94,7 @@ def words_note(result: object, heard: float | None) -> str | None:
     ``distinctive_words`` are empty, as a concept's where no word was heard), else None."""
     if heard == 0:
         return NO_WORDS
-    return None if words_modelled(result) else f"words {WORDS_NOT_MODELLED}"
+    return None if words_modelled(result) else WORDS_NOT_MODELLED_NOTE
 
 
 def listed_top_words(result, concept: int, n: int) -> list[tuple[str, float]]:
