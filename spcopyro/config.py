@@ -359,6 +359,10 @@ class DataPreparation:
             (:mod:`spcopyro.data.footprint`, "Reaching the Voronoi border"); still one
             observation in total, the same tempered product. 0 (the default): off, the
             footprint exactly as without it.
+        footprint_reach_radius: metres > 0, or None (the default: no limit): the Voronoi cells
+            of ``footprint_reach_share`` cut at that geodesic distance from their observed
+            cell, so a spot's share stays within it (a sparse house's doorway into the next,
+            unobserved room; "Bounding the reach"). Read only where the share is > 0.
         word_scaling: s > 0: each utterance's word counts (or tf-idf weights) times s, the
             words' weight against the images and the MRF (1: the paper). A tempered likelihood,
             as ``feature_scaling`` is for images (``floor100`` counts a histogram as 100 draws).
@@ -380,6 +384,7 @@ class DataPreparation:
     word_scaling: float = 1.0
     cell_size: float | None = None
     footprint_reach_share: float = 0.0
+    footprint_reach_radius: float | None = None
 
     def __post_init__(self) -> None:
         def bad(name: str, why: str) -> ValueError:
@@ -411,6 +416,10 @@ class DataPreparation:
         if not (is_number(share) and math.isfinite(share) and 0 <= share < 1):
             raise bad("footprint_reach_share", "must be a number in [0, 1): the share of each "
                       "observation spread over its Voronoi cell (0: off)")  # fmt: skip
+        cut = self.footprint_reach_radius
+        if cut is not None and not (is_number(cut) and math.isfinite(cut) and cut > 0):
+            raise bad("footprint_reach_radius", "must be None (no limit) or a finite number of "
+                      "metres > 0: the Voronoi cells' cut")  # fmt: skip
         ws = self.word_scaling
         if not (is_number(ws) and math.isfinite(ws) and ws > 0):
             raise bad("word_scaling", "must be a positive finite number (1: the paper)")
@@ -457,14 +466,16 @@ class DataPreparation:
 
     def to_json(self) -> dict[str, object]:
         """The fields as JSON values, as saved (config.json, checkpoints, records):
-        ``word_footprint_radius`` and ``footprint_reach_share`` only where set (not None, not
-        0), so a preparation without them saves as before they existed and what was saved then
-        loads as it was."""
+        ``word_footprint_radius``, ``footprint_reach_share`` and ``footprint_reach_radius``
+        only where set (not None, not 0), so a preparation without them saves as before they
+        existed and what was saved then loads as it was."""
         values = dataclasses.asdict(self)
         if self.word_footprint_radius is None:
             del values["word_footprint_radius"]
         if not self.footprint_reach_share:
             del values["footprint_reach_share"]
+        if self.footprint_reach_radius is None:
+            del values["footprint_reach_radius"]
         return values
 
 

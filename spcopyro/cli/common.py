@@ -237,6 +237,8 @@ def _placement_lines(house: House, counts: CellCounts, prep: DataPreparation) ->
         if words != radius:  # the data line's branching (fit_summary.data_line)
             own, at_cell = (f", words' {words:g} m", "") if words else ("", " (words at cell)")
         reach = " and Voronoi cells" if prep.footprint_reach_share else ""
+        if reach and prep.footprint_reach_radius is not None:
+            reach += f" within {prep.footprint_reach_radius:g} m"
         observed += (f"; {len(spread.cells)} within their {radius:g} m{own} footprints{at_cell}"
                      f"{reach}")  # fmt: skip
     p = counts.placement

@@ -265,6 +265,14 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         "Voronoi cell among its modality's observed cells, 1 - E over its footprint "
         "(default 0: off)",
     )
+    p.add_argument(
+        "--footprint-reach-radius",
+        type=float,
+        default=None,
+        metavar="METRES",
+        help="cut each observation's Voronoi cell of --footprint-reach-share at METRES "
+        "geodesic from its cell (default: no limit)",
+    )
     p.add_argument("--no-figures", action="store_true",
                    help="write no PNG figures (semantic_map, trace, house, uncertainty, "
                         "agreement), saving seconds and matplotlib's import: labels.npy, "

@@ -122,6 +122,7 @@ def fit_settings(args: argparse.Namespace, house: House) -> tuple[SpCoSettings, 
         footprint_kernel=args.footprint_kernel, footprint_fov=args.footprint_fov,
         word_footprint_radius=args.word_footprint,
         footprint_reach_share=args.footprint_reach_share,
+        footprint_reach_radius=args.footprint_reach_radius,
     )  # fmt: skip
     further = {m.name for m in house.observations.modalities}
     for name in overrides["concentrations"] or {}:

@@ -97,7 +97,9 @@ def data_line(
             fov += f", words {_number(p.words_radius)} m" if p.words_radius else ", words at cell"
         parts.append(f"footprint {_number(p.footprint_radius)} m ({p.footprint_kernel}{fov})")
     if p.footprint_reach_share:
-        parts.append(f"reach share {_number(p.footprint_reach_share)} (Voronoi cells)")
+        cut = p.footprint_reach_radius
+        within = "" if cut is None else f" within {_number(cut)} m"
+        parts.append(f"reach share {_number(p.footprint_reach_share)} (Voronoi cells{within})")
     if p.snap_distance != DEFAULT_SNAP_DISTANCE:
         parts.append(f"snap distance {_number(p.snap_distance)} m")
     return f"{'data':<{LABEL}}{', '.join(parts)}"

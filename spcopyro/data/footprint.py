@@ -83,6 +83,23 @@ footprint reaches, where the Potts prior alone draws them (the shortest border t
 footprints apart); the reach share puts a little of each place's evidence up to the border
 half-way to the next observation (:func:`voronoi_weights`).
 
+**Bounding the reach** (``DataPreparation.footprint_reach_radius`` rho metres, > 0; None, the
+default: no limit, the cells above exactly). The Voronoi cell is cut at geodesic distance rho
+from its source:
+
+.. math::
+
+    z^\rho_{sc} = z_{sc}\, [\, d^*(c) \le \rho \,],
+
+so a cell farther than rho from every source gets no Voronoi weight and the rest keep theirs
+(a cell within rho of its nearest sources has the same nearest sources and ties as without the
+cut). :math:`v_{sc}` normalises :math:`z^\rho_{sc}` as before; the source's own cell
+(:math:`d = 0`) is always in, so each row still sums to 1. Why: on a sparse house a spot's
+Voronoi cell reaches through a doorway into the next, unobserved room, carrying its place's
+evidence there; the cut keeps it within rho of where it was observed. The Dijkstra pass takes rho
+as its ``limit``: every cell on a shortest path to a cell within rho is within rho too, so the
+ties below are found as without it.
+
 How :math:`d^*` and the ties are found: one multi-source Dijkstra pass (``min_only``) gives
 :math:`d^*(c)` and one nearest source per cell; an edge p -> c of length l is *tight* where
 :math:`d^*(p) + l = d^*(c)` (to a relative 1e-9), and a source s attains the minimum at c exactly
@@ -217,6 +234,12 @@ def _check_share(share: float) -> None:
                          "(each observation's share over its Voronoi cell; 0: off)")  # fmt: skip
 
 
+def _check_reach_radius(radius: float | None) -> None:
+    if radius is not None and not (is_number(radius) and math.isfinite(radius) and radius > 0):
+        raise ValueError(f"footprint_reach_radius={radius!r}: must be None (no limit) or a "
+                         "finite number of metres > 0 (the Voronoi cells' cut)")  # fmt: skip
+
+
 def _check(radius: float, kernel: str, fov: float | None) -> None:
     if not (is_number(radius) and math.isfinite(radius) and radius >= 0):
         raise ValueError(f"footprint_radius={radius!r}: must be a finite number of metres >= 0")
@@ -237,19 +260,23 @@ def footprint_weights(
     graph: sparse.csr_matrix | None = None,
     advance: Callable[[int], None] | None = None,
     reach_share: float = 0.0,
+    reach_radius: float | None = None,
 ) -> sparse.csr_matrix:
     """[T, N] sparse weights w_tc of each observation over the free cells (module docstring):
     the footprint's, or with ``reach_share`` e > 0 the mixture (1 - e) w_tc + e v_{s_t c} with
-    the observation's Voronoi cell among ``cells`` (:func:`voronoi_weights`). The arguments
-    are :func:`disc_weights`'; e = 0 returns its weights as they are."""
+    the observation's Voronoi cell among ``cells`` (:func:`voronoi_weights`), cut at
+    ``reach_radius`` metres from its source (None: no limit). The other arguments are
+    :func:`disc_weights`'; e = 0 returns its weights as they are (the radius unread)."""
     _check_share(reach_share)
+    _check_reach_radius(reach_radius)
     if reach_share and graph is None:  # built once, for the disc's searches and the Voronoi's
         graph = free_cell_graph(grid)
     weights = disc_weights(grid, cells, radius, kernel, yaw=yaw, fov=fov, graph=graph,
                            advance=advance)  # fmt: skip  # [T, N]
     if not reach_share:
         return weights
-    mixed = (1.0 - reach_share) * weights + reach_share * voronoi_weights(grid, cells, graph)
+    cut = voronoi_weights(grid, cells, graph, reach_radius)  # [T, N]
+    mixed = (1.0 - reach_share) * weights + reach_share * cut
     mixed = mixed.tocsr()  # [T, N]
     mixed.eliminate_zeros()
     mixed.sort_indices()
@@ -356,16 +383,23 @@ def disc_weights(
 
 
 def voronoi_weights(
-    grid: OccupancyGrid, cells: np.ndarray, graph: sparse.csr_matrix | None = None
+    grid: OccupancyGrid,
+    cells: np.ndarray,
+    graph: sparse.csr_matrix | None = None,
+    radius: float | None = None,
 ) -> sparse.csr_matrix:
     """[T, N] sparse weights v_{s_t c} of each observation uniform over its geodesic Voronoi
     cell among the distinct placed ``cells`` (module docstring, "Reaching the Voronoi border"):
     the free cells whose nearest source over ``graph`` (:func:`free_cell_graph`, computed if
-    None) is its cell, a cell tied between k sources counting 1/k to each. ``cells`` [T] free
-    indices, -1 unplaced (its row stays empty). Every placed row sums to 1."""
+    None) is its cell, a cell tied between k sources counting 1/k to each; with ``radius``
+    (metres, None: no limit) only the cells within that geodesic distance of it ("Bounding the
+    reach"). ``cells`` [T] free indices, -1 unplaced (its row stays empty). Every placed row
+    sums to 1."""
     from scipy import sparse
     from scipy.sparse.csgraph import dijkstra
 
+    _check_reach_radius(radius)
+    limit = np.inf if radius is None else float(radius) * (1 + 1e-9) + 1e-12  # as the disc's
     cells = np.asarray(cells, dtype=np.int64).reshape(-1)  # [T]
     num_obs, n = cells.size, int(grid.num_free)
     placed = np.flatnonzero(cells >= 0)  # [T']
@@ -376,8 +410,8 @@ def voronoi_weights(
     graph = free_cell_graph(grid) if graph is None else graph
     sources = np.unique(cells[placed])  # [S] sorted
     dist, _, nearest = dijkstra(graph, directed=False, indices=sources, min_only=True,
-                                return_predecessors=True)  # fmt: skip  # [N] x3
-    reached = np.flatnonzero(np.isfinite(dist))  # [r] cells some source reaches
+                                return_predecessors=True, limit=limit)  # fmt: skip  # [N] x3
+    reached = np.flatnonzero(np.isfinite(dist))  # [r] cells some source reaches (within limit)
     first = sparse.csr_matrix(  # [N, S] the one nearest source Dijkstra names
         (np.ones(reached.size), (reached, np.searchsorted(sources, nearest[reached]))),
         shape=(n, sources.size),
