@@ -48,7 +48,9 @@ share of each observation over its geodesic Voronoi cell) come in three forms: t
 stages with the share in the first (the refinement prepares the data as ``auto`` does, share
 0), the first stage alone (``--refine never``, :data:`real_houses.UNREFINED`), and the share in
 both stages (:data:`STAGE_TWO`: the refinement's settings patched for the variant's fits, a
-screening, not an option of the library).
+screening, not an option of the library). ``reach 0.25 within R m``: the share's Voronoi cells
+cut at R metres from their cell (``footprint_reach_radius``; sparse seed 1's spots reach through
+a doorway into the next room without it), in the first stage.
 """
 
 from __future__ import annotations
@@ -78,6 +80,7 @@ STAGE_TWO = "stage two"
 (:func:`spcopyro.fit.refine.refined_settings`) are replaced with for the variant's fits
 (:func:`variant`)."""
 REACH = "footprint_reach_share"
+REACH_RADIUS = "footprint_reach_radius"
 VARIANTS: dict[str, tuple[str, dict[str, object]]] = {
     "coarse": (BASE, {}),
     "paper-dp": ("paper-dp", {}),
@@ -105,6 +108,8 @@ VARIANTS: dict[str, tuple[str, dict[str, object]]] = {
     "reach 0.1": (BASE, {REACH: 0.1}),
     "reach 0.1, --refine never": (rh.UNREFINED, {REACH: 0.1}),
     "reach 0.2": (BASE, {REACH: 0.2}),
+    "reach 0.25 within 2 m": (BASE, {REACH: 0.25, REACH_RADIUS: 2.0}),
+    "reach 0.25 within 3 m": (BASE, {REACH: 0.25, REACH_RADIUS: 3.0}),
 }
 """Name -> (preset, overrides), in the order run: ``coarse`` and ``paper-dp`` first (the
 references at the same sweeps), then the variants by the prior that they could raise held-out
