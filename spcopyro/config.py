@@ -362,7 +362,7 @@ class DataPreparation:
         footprint_reach_radius: metres > 0, or None (the default: no limit): the Voronoi cells
             of ``footprint_reach_share`` cut at that geodesic distance from their observed
             cell, so a spot's share stays within it (a sparse house's doorway into the next,
-            unobserved room; "Bounding the reach"). Read only where the share is > 0.
+            unobserved room; "Bounding the reach"). Refused where the share is 0.
         word_scaling: s > 0: each utterance's word counts (or tf-idf weights) times s, the
             words' weight against the images and the MRF (1: the paper). A tempered likelihood,
             as ``feature_scaling`` is for images (``floor100`` counts a histogram as 100 draws).
@@ -420,6 +420,10 @@ class DataPreparation:
         if cut is not None and not (is_number(cut) and math.isfinite(cut) and cut > 0):
             raise bad("footprint_reach_radius", "must be None (no limit) or a finite number of "
                       "metres > 0: the Voronoi cells' cut")  # fmt: skip
+        if cut is not None and not share:  # it would change nothing but skip the refinement
+            raise bad("footprint_reach_radius", "cuts the Voronoi cells of "
+                      "footprint_reach_share, which is 0: give a share > 0 "
+                      "(--footprint-reach-share) or no radius")  # fmt: skip
         ws = self.word_scaling
         if not (is_number(ws) and math.isfinite(ws) and ws > 0):
             raise bad("word_scaling", "must be a positive finite number (1: the paper)")

@@ -112,3 +112,16 @@ def test_fit_reach_radius_option_reaches_config_json(tmp_path):
     settings = json.loads((out / "config.json").read_text())
     assert settings["data"]["footprint_reach_radius"] == 2.0
     assert settings["data"]["footprint_reach_share"] == 0.25
+
+
+def test_a_reach_radius_without_a_share_is_refused(tmp_path, capsys):
+    """A radius cuts the share's Voronoi cells: without a share it would change no count but
+    still count as preparing the data, skipping the recommended refinement unsaid."""
+    with pytest.raises(ValueError, match=r"footprint_reach_radius=2\.0: cuts the Voronoi cells"):
+        DataPreparation(footprint_reach_radius=2.0)
+    DataPreparation(footprint_reach_share=0.25, footprint_reach_radius=2.0)  # with a share: fine
+    code = main(["fit", "--sweeps", "3", "--backend", "torch", "--footprint-reach-radius", "2",
+                 "--out", str(tmp_path / "fit")])  # fmt: skip
+    assert code != 0
+    assert "footprint_reach_share, which is 0" in capsys.readouterr().err
+    assert not (tmp_path / "fit" / "config.json").exists()
