@@ -234,6 +234,12 @@ def _check_share(share: float) -> None:
                          "(each observation's share over its Voronoi cell; 0: off)")  # fmt: skip
 
 
+def _limit(radius: float) -> float:
+    """Dijkstra's ``limit`` for a radius in metres: a hair above it, so that a cell at exactly
+    the radius (up to the sums' rounding) is reached."""
+    return float(radius) * (1 + 1e-9) + 1e-12
+
+
 def _check_reach_radius(radius: float | None) -> None:
     if radius is not None and not (is_number(radius) and math.isfinite(radius) and radius > 0):
         raise ValueError(f"footprint_reach_radius={radius!r}: must be None (no limit) or a "
@@ -343,7 +349,7 @@ def disc_weights(
     bounds = np.searchsorted(cells[by_cell], sources, side="left")  # [S]
     ends = np.searchsorted(cells[by_cell], sources, side="right")  # [S]
     out_rows, out_cols, out_vals = [], [], []
-    limit = float(radius) * (1 + 1e-9) + 1e-12
+    limit = _limit(radius)
     for chunk, window in _source_windows(grid, sources, limit):
         # Dijkstra on the free cells of a window around the chunk's sources only: a path of at
         # most `limit` metres moves at most that far in each axis, so it stays in the window;
@@ -399,7 +405,7 @@ def voronoi_weights(
     from scipy.sparse.csgraph import dijkstra
 
     _check_reach_radius(radius)
-    limit = np.inf if radius is None else float(radius) * (1 + 1e-9) + 1e-12  # as the disc's
+    limit = np.inf if radius is None else _limit(radius)
     cells = np.asarray(cells, dtype=np.int64).reshape(-1)  # [T]
     num_obs, n = cells.size, int(grid.num_free)
     placed = np.flatnonzero(cells >= 0)  # [T']
