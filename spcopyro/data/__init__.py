@@ -26,9 +26,10 @@ Modules (everything public is re-exported here, so ``from spcopyro.data import X
   (eq. 20).
 * :mod:`~spcopyro.data.placement`: :func:`place_observations` (eq. 11, snapping),
   :class:`PlacementReport`, :class:`ModalityPlacement`.
-* :mod:`~spcopyro.data.counts`: :func:`scale_features`, :class:`CellCounts`,
-  :class:`CellModalityCounts`, :func:`cell_counts`, :func:`check_count_totals`
-  (:data:`MAX_COUNT_TOTAL`).
+* :mod:`~spcopyro.data.counts`: :class:`CellCounts`, :class:`CellModalityCounts`,
+  :func:`cell_counts`, :func:`prepared_cell_counts`.
+* :mod:`~spcopyro.data.count_checks`: :func:`scale_features`, :func:`check_count_totals`
+  (:data:`MAX_COUNT_TOTAL`), the warnings about observations left out.
 * :mod:`~spcopyro.data.dataset`: :class:`House`, :func:`load_house`, :func:`save_house`,
   :func:`find_dataset_root`, :func:`list_houses`.
 * :mod:`~spcopyro.data.dataset_files`: the readers and writers of the single files of a house

@@ -9,7 +9,7 @@ that is right -- positions outside its frame, a floor plan drawn black where the
 thick walls beside positions a little off -- and what to do about each.
 
 A fit counts with ``warn=False`` and :func:`check_placement` says the counting's warnings
-(:func:`~spcopyro.data.counts.say_placement_warnings`): a refusal that blames the map (no
+(:func:`~spcopyro.data.count_checks.say_placement_warnings`): a refusal that blames the map (no
 observation on free space; the ``negate`` line) comes alone, not after the warnings listing the
 observations left out and repeating its counts (a ``negate: 1`` map printed two long warnings,
 then the refusal); the refusal on a map that may be right points to the lines those warnings
@@ -73,7 +73,7 @@ def check_placement(
     on occupied cells (:func:`inverted_free_space_message`): a fit would learn every concept from
     the prior alone, or from the few observations snapped onto the walls. The one place the
     second is refused (``check_on_free`` says only the first). The counting's warnings
-    (:func:`~spcopyro.data.counts.say_placement_warnings` of ``report``, ``grid``, ``obs`` and
+    (:func:`~spcopyro.data.count_checks.say_placement_warnings` of ``report``, ``grid``, ``obs`` and
     the house folder ``source``: count with ``warn=False``) are said once: before the refusal
     on a map that may be right, which points to the lines the warnings name, or when the
     placement passes; not before the others, which blame the map. The messages name the map as

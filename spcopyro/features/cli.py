@@ -85,7 +85,7 @@ def floor100_note(features, out: str | Path) -> str | None:
     ImageNet classes often has every entry below 0.01 (``--weights random``: all of them),
     which floor(100 f) makes an all-zero row. The default fit reads them as probabilities, and
     its ``--refine auto`` does not refine where more than
-    :data:`~spcopyro.data.counts.KEEPS` of the rows would be emptied: nothing to do there;
+    :data:`~spcopyro.data.count_checks.KEEPS` of the rows would be emptied: nothing to do there;
     else the refinement, where it runs, counts them as floor(100 f), and ``--refine never``
     keeps them as probabilities."""
     import numpy as np
