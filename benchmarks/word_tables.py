@@ -59,7 +59,8 @@ KINDS = ("draw", "mean given labels", "mean over samples")
 def top_word_agreement(result: SpCoResult, truth: np.ndarray, names: tuple[str, ...]) -> float:
     """Share of the concepts in use that list a word as ``fit`` lists them (a word was heard
     there and the fit modelled its words) whose most probable word is a token of the name of the
-    category holding most of their cells."""
+    category holding most of their cells; nan (not measured) where no concept lists a word, as
+    for a fit that did not model its words (0.0 would read as measured and every top word wrong)."""
     image = result.label_image()  # [H, W]
     hits = []
     for concept in result.concepts_in_use():
@@ -71,7 +72,7 @@ def top_word_agreement(result: SpCoResult, truth: np.ndarray, names: tuple[str, 
             continue
         category = names[int(np.bincount(cells).argmax())]
         hits.append(listed[0][0] in category.split())
-    return float(np.mean(hits)) if hits else 0.0
+    return float(np.mean(hits)) if hits else float("nan")
 
 
 def score(result: SpCoResult, house) -> dict[str, float]:
@@ -109,6 +110,16 @@ def run(seeds: int, sweeps: int, spec: HouseSpec | None, report) -> dict[str, ob
     return records
 
 
+def _cell(values: list[float]) -> str:
+    """``mean ± sd`` of a score's measured values (nan: not measured, left out), the number
+    measured where some seed was not, and "not measured" where none was."""
+    measured = [v for v in values if not np.isnan(v)]
+    if not measured:
+        return "not measured"
+    text = f"{np.mean(measured):.3f} ± {np.std(measured):.3f}"
+    return text if len(measured) == len(values) else f"{text} ({len(measured)}/{len(values)} seeds)"
+
+
 def table(records) -> str:
     lines = [
         "| setting | word tables | matching rate (pi) | matching rate (area) | "
@@ -119,8 +130,7 @@ def table(records) -> str:
         for kind, rows in kinds.items():
             cells = []
             for key in ("matching_rate_pi", "matching_rate_area", "top_word_names_category"):
-                values = [r[key] for r in rows]
-                cells.append(f"{np.mean(values):.3f} ± {np.std(values):.3f}")
+                cells.append(_cell([r[key] for r in rows]))
             lines.append(f"| {label} | {kind} | " + " | ".join(cells) + " |")
     return "\n".join(lines)
 
