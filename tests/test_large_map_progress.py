@@ -85,7 +85,7 @@ def test_room_count_stays_quiet_where_it_segments_the_rooms(large, capsys, monke
     """room_count's fallback (a min_room_area a hair above whole cells) segments the map once
     per candidate width of auto_door_width, whose own bar counts the widths: no bar of its own,
     as its level-set counts have none."""
-    from spcopyro.baselines import geometry
+    from spcopyro.maps import rooms as geometry  # the segmentation, re-exported by (F)'s
 
     monkeypatch.setattr(geometry, "_counts_are_created", lambda res, area: False)
     grid = make_house(seed=0, spec=HouseSpec(height=30, width=36, num_rooms=2)).grid

@@ -230,7 +230,7 @@ def test_auto_transforms_the_distances_once_and_floods_no_width(monkeypatch):
     one distance transform and a labelling per distinct level, no growth."""
     from scipy import ndimage
 
-    from spcopyro.baselines import geometry
+    from spcopyro.maps import rooms as geometry  # the segmentation, re-exported by (F)'s
 
     calls = {"distance": 0, "grow": 0}
     transform, grow = ndimage.distance_transform_edt, geometry.grow_labels
@@ -278,8 +278,8 @@ def test_room_count_is_room_segments_count(tmp_path, monkeypatch):
     rounding guard fails) is the number of :func:`room_segments`' segments that count as rooms:
     from the labellings without growing any room where the guard allows (0.1 m), from the
     segmentation where ``min_room_area / res^2`` lies a hair above an integer (0.45 at 0.3 m)."""
-    from spcopyro.baselines import geometry
     from spcopyro.baselines.geometry import counts_as_room, room_count, room_segments
+    from spcopyro.maps import rooms as geometry  # the segmentation, re-exported by (F)'s
 
     _, three = three_rooms(tmp_path)
     coarse = OccupancyGrid(office_block().occupancy, 0.3, (0.0, 0.0, 0.0))
@@ -304,7 +304,7 @@ def test_auto_and_room_count_take_their_counts_from_one_helper(monkeypatch):
     """``auto_door_width`` and :func:`room_count` each spelt the counts-or-segment branch; both
     ask ``_rooms_at``, and ``auto``'s count at the width it chooses is :func:`room_count`'s there,
     with the rounding guard on (1 m2 at 0.1 m) and off (0.45 m2 at 0.3 m: a segmentation each)."""
-    from spcopyro.baselines import geometry
+    from spcopyro.maps import rooms as geometry  # the segmentation, re-exported by (F)'s
 
     coarse = OccupancyGrid(office_block().occupancy, 0.3, (0.0, 0.0, 0.0))
     widths, rooms_at, asked = [0.75, 1.25, 2.0], geometry._rooms_at, []
