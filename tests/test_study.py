@@ -1099,9 +1099,10 @@ def test_the_maps_name_the_table_s_rows_once(tmp_path, monkeypatch):
     assert len(calls) == 1 and [name for name, _ in panels] == ["mine"]
 
 
-def test_the_maps_read_each_row_s_stored_map_once(tmp_path, monkeypatch):
-    """source_panels read every stored map of a source at every seed only to learn that it
-    exists, then read the chosen seed's maps again: each row's file is read once now."""
+def test_the_maps_read_the_drawn_seed_s_stored_maps_once(tmp_path, monkeypatch):
+    """source_panels read every stored map of a source at every seed (each once since
+    6704dcd) though it draws one seed's: it reads the drawn seed's files only now, each once,
+    passing over a lower seed whose cells stored no map."""
     import numpy as np
 
     from spcopyro.maps import OccupancyGrid
@@ -1126,10 +1127,20 @@ def test_the_maps_read_each_row_s_stored_map_once(tmp_path, monkeypatch):
                         lambda f, row: read.append(row["label_map"]) or load(f, row))  # fmt: skip
     monkeypatch.setattr(maps, "plot_label_maps", lambda *args: drawn.append(args[1]) or args[2])
     assert len(maps.write_house_maps(rows, tmp_path)) == 2
-    assert sorted(read) == sorted(row["label_map"] for row in rows)  # each once (was 12 reads)
+    drawn_files = sorted(row["label_map"] for row in rows if row["seed"] == 0)
+    assert sorted(read) == drawn_files  # seed 0's, each once (was every seed's, 12 reads)
     names = [[name for name, _ in panels] for panels in drawn]
     assert names == [["gibbs", "other / gibbs"]] * 2
     assert all((labels == 0).all() for panels in drawn for _, labels in panels)  # the first seed
+    failed = [dict(r, status="failed") if r["seed"] == 0 else r for r in rows]
+    read.clear()
+    _, panels, seed = maps.source_panels(failed, tmp_path, "h1")
+    assert seed == 1 and all((labels == 1).all() for _, labels in panels)
+    assert sorted(read) == sorted(r["label_map"] for r in rows if r["data"] == "h1")  # 0: none
+    read.clear()
+    _, panels, seed = maps.source_panels(rows, tmp_path, "h2", seed=1)
+    assert seed == 1 and sorted(read) == ["maps/h2_1_default.npz", "maps/h2_1_other.npz"]
+    assert maps.source_panels(failed, tmp_path, "h1", seed=0) is None
 
 
 def test_sentence_scores_list_no_words_for_a_concept_where_none_was_heard():

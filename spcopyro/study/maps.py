@@ -219,20 +219,22 @@ def source_panels(
     """The panels of source ``data`` at ``seed`` (None: its first seed with a stored map):
     the truth when known (a public house's named "region truth (this project's)"), then each
     row's map in the table's order, named by ``label(row)`` (default :func:`row_label` of
-    ``rows``); None when no map is stored."""
-    loaded = [(r, load_label_map(folder, r)) for r in rows if r["data"] == data]
-    mine = [(r, stored) for r, stored in loaded if stored is not None]  # each file read once
-    if not mine:
-        return None
-    if seed is None:
-        seed = min(int(r["seed"]) for r, _ in mine)  # type: ignore[call-overload]
-    maps = [(r, stored) for r, stored in mine if r["seed"] == seed]
+    ``rows``); None when no map is stored. Reads the drawn seed's files only, each once (a
+    lower seed's rows, tried first, store none)."""
+    mine = [(int(r["seed"]), r) for r in rows if r["data"] == data]  # type: ignore[call-overload]
+    maps: list[tuple[dict[str, object], StoredMap]] = []
+    for chosen in sorted({s for s, _ in mine}) if seed is None else [seed]:  # the first stored
+        loaded = [(r, load_label_map(folder, r)) for s, r in mine if s == chosen]
+        maps = [(r, stored) for r, stored in loaded if stored is not None]
+        if maps:
+            seed = chosen
+            break
     if not maps:
         return None
     grid, truth = maps[0][1].grid, maps[0][1].truth
     # a public house's truth is this project's (public_truth: from where place words were
     # said), not the paper's drawn one: a panel titled "truth" read as the paper's
-    public = any(r.get("data_kind") == "public" for r, _ in mine)
+    public = any(r.get("data_kind") == "public" for _, r in mine)  # the source's kind
     truth_name = REGION_TRUTH_PANEL if public else TRUTH_PANEL
     panels = [] if truth is None else [(truth_name, truth)]
     if label is None:  # the whole table's names: the legend of quality_time.png's
