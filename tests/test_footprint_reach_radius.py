@@ -125,3 +125,22 @@ def test_a_reach_radius_without_a_share_is_refused(tmp_path, capsys):
     assert code != 0
     assert "footprint_reach_share, which is 0" in capsys.readouterr().err
     assert not (tmp_path / "fit" / "config.json").exists()
+
+
+def test_the_cut_is_worded_in_one_place_for_both_summary_lines():
+    """The fit summary's data line (fit_summary.data_line) and its observed-cells line
+    (cli.common) each built "Voronoi cells within R m"; both now say reach_cut_text's words."""
+    from spcopyro.cli.common import _summary
+    from spcopyro.cli.fit_summary import data_line
+    from spcopyro.data.footprint import reach_cut_text
+    from spcopyro.data.model_grid import model_house
+    from spcopyro.synthetic import HouseSpec, make_house
+
+    assert reach_cut_text(None) == "Voronoi cells"
+    assert reach_cut_text(2.0) == "Voronoi cells within 2 m"
+    data = preset("coarse", footprint_reach_share=0.25, footprint_reach_radius=2.0).data
+    assert "reach share 0.25 (Voronoi cells within 2 m)" in data_line(data)
+    house = model_house(make_house(seed=0, spec=HouseSpec.embedded()), data.cell_size)
+    lines = _summary(house, warn=False, preparation=data).splitlines()
+    observed = next(x for x in lines if x.startswith("observed cells"))
+    assert observed.endswith(" footprints and Voronoi cells within 2 m")

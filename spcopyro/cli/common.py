@@ -27,6 +27,7 @@ from spcopyro.data import (
     load_house,
     prepared_cell_counts,
 )
+from spcopyro.data.footprint import reach_cut_text
 
 if TYPE_CHECKING:
     from spcopyro.data.counts import CellCounts
@@ -236,9 +237,9 @@ def _placement_lines(house: House, counts: CellCounts, prep: DataPreparation) ->
         own = at_cell = ""
         if words != radius:  # the data line's branching (fit_summary.data_line)
             own, at_cell = (f", words' {words:g} m", "") if words else ("", " (words at cell)")
-        reach = " and Voronoi cells" if prep.footprint_reach_share else ""
-        if reach and prep.footprint_reach_radius is not None:
-            reach += f" within {prep.footprint_reach_radius:g} m"
+        reach = ""
+        if prep.footprint_reach_share:
+            reach = f" and {reach_cut_text(prep.footprint_reach_radius)}"
         observed += (f"; {len(spread.cells)} within their {radius:g} m{own} footprints{at_cell}"
                      f"{reach}")  # fmt: skip
     p = counts.placement

@@ -80,6 +80,7 @@ def data_line(
     is (``auto: 27 of 54 utterances are sentences (50%; tf-idf from 30%)``;
     :func:`spcopyro.cli.fit_settings.word_weighting_note`), None for counts as ever."""
     from spcopyro.config import DEFAULT_SNAP_DISTANCE
+    from spcopyro.data.footprint import reach_cut_text
 
     p = preparation
     parts = [_cells(p.cell_size, grid), f"feature scaling {_value(p.feature_scaling)}"]
@@ -97,9 +98,8 @@ def data_line(
             fov += f", words {_number(p.words_radius)} m" if p.words_radius else ", words at cell"
         parts.append(f"footprint {_number(p.footprint_radius)} m ({p.footprint_kernel}{fov})")
     if p.footprint_reach_share:
-        cut = p.footprint_reach_radius
-        within = "" if cut is None else f" within {_number(cut)} m"
-        parts.append(f"reach share {_number(p.footprint_reach_share)} (Voronoi cells{within})")
+        cut = reach_cut_text(p.footprint_reach_radius)
+        parts.append(f"reach share {_number(p.footprint_reach_share)} ({cut})")
     if p.snap_distance != DEFAULT_SNAP_DISTANCE:
         parts.append(f"snap distance {_number(p.snap_distance)} m")
     return f"{'data':<{LABEL}}{', '.join(parts)}"

@@ -105,7 +105,7 @@ class CellCounts:
     spread: dict[str, SpreadSources] = field(default_factory=dict, repr=False)
     """With a footprint: each modality's counts in factored form (by modality name; equal to
     its count matrix to rounding), which a sampler's products may use
-    (:class:`~spcopyro.data.footprint.SpreadSources`). Empty without a footprint."""
+    (:class:`~spcopyro.data.factored_counts.SpreadSources`). Empty without a footprint."""
 
 
 def cell_counts(

@@ -46,15 +46,9 @@ observation's tempered product is over its own footprint, so the utterances may 
 radius than the images, 0 counting each whole at its own cell (the paper's words) while the
 images keep their footprint.
 
-**Factored counts.** The weighted counts are a product, :math:`\tilde x = A X`: ``A`` [M, S]
-the footprints' weights on the observed cells and ``X`` [S, K] the counts of the S distinct
-footprints (observations sharing a cell share one, unless a field of view tells them apart).
-A public house (room2ldk4) at 0.25 m has M = 561 observed cells under the default's 0.75 m
-footprints (686 under 1 m) and S = 75 footprints, so a sampler's per-sweep product
-:math:`\tilde x \log\phi^\top`, computed as :math:`A (X \log\phi^\top)`, costs about
-S / M = 1 / 7.5 of the direct one (:class:`SpreadSources`, kept beside the counts by
-:func:`~spcopyro.data.cell_counts`; :mod:`spcopyro.gibbs.numba_background` uses it). Both give
-the same numbers to rounding.
+**Factored counts.** The weighted counts :math:`\tilde x = A X` as a product of the footprints'
+weights and the distinct footprints' counts: :mod:`spcopyro.data.factored_counts`
+(:func:`spread_counts`, :class:`SpreadSources`, :func:`spread_sources`, re-exported here).
 
 **Reaching the Voronoi border** (``DataPreparation.footprint_reach_share`` e, 0 <= e < 1;
 0, the default, is the footprint above exactly). Each observation's weight 1 is split: 1 - e
@@ -120,13 +114,13 @@ import contextlib
 import math
 from collections.abc import Callable, Iterator
 from contextvars import ContextVar
-from dataclasses import dataclass
 from typing import TYPE_CHECKING, Literal, TypeVar
 
 import numpy as np
 
 from spcopyro._util.context import set_within
 from spcopyro.config import is_number
+from spcopyro.data.factored_counts import SpreadSources, spread_counts, spread_sources
 from spcopyro.maps.grid import OccupancyGrid
 
 if TYPE_CHECKING:  # scipy.sparse is imported where a footprint is built (0.3 s of every fit else)
@@ -142,6 +136,7 @@ __all__ = [
     "spread_counts",
     "release_shared_footprints",
     "shared_footprints",
+    "reach_cut_text",
     "spread_sources",
     "voronoi_weights",
 ]
@@ -246,6 +241,13 @@ def _check_reach_radius(radius: float | None) -> None:
                          "finite number of metres > 0 (the Voronoi cells' cut)")  # fmt: skip
 
 
+def reach_cut_text(radius: float | None) -> str:
+    """How the reach share's Voronoi cells are cut, as the fit's summary says it (its data line
+    and its observed-cells line): ``"Voronoi cells"``, with ``" within 2 m"`` for a radius
+    (numbers as ``:g`` writes them)."""
+    return "Voronoi cells" if radius is None else f"Voronoi cells within {radius:g} m"
+
+
 def _check(radius: float, kernel: str, fov: float | None) -> None:
     if not (is_number(radius) and math.isfinite(radius) and radius >= 0):
         raise ValueError(f"footprint_radius={radius!r}: must be a finite number of metres >= 0")
@@ -322,7 +324,7 @@ def disc_weights(
     from scipy import sparse
 
     _check(radius, kernel, fov)
-    cells = np.asarray(cells, dtype=np.int64).reshape(-1)  # [T]
+    cells, placed = _placed(grid, cells)  # [T], [T']
     num_obs, n = cells.size, int(grid.num_free)
     if fov is not None and yaw is None:
         raise ValueError("footprint_fov needs each observation's yaw (the data hold none)")
@@ -330,9 +332,6 @@ def disc_weights(
         yaw = np.asarray(yaw, dtype=np.float64).reshape(-1)  # [T]
         if yaw.size != num_obs:
             raise ValueError(f"yaw has {yaw.size} entries for {num_obs} observations")
-    placed = np.flatnonzero(cells >= 0)  # [T']
-    if placed.size and cells[placed].max() >= n:
-        raise ValueError(f"cells holds free index {cells[placed].max()}, the map has {n}")
     if radius == 0:  # each observation whole at its own cell: no graph, no Dijkstra
         if advance is not None and placed.size:
             advance(int(np.unique(cells[placed]).size))
@@ -406,13 +405,10 @@ def voronoi_weights(
 
     _check_reach_radius(radius)
     limit = np.inf if radius is None else _limit(radius)
-    cells = np.asarray(cells, dtype=np.int64).reshape(-1)  # [T]
+    cells, placed = _placed(grid, cells)  # [T], [T']
     num_obs, n = cells.size, int(grid.num_free)
-    placed = np.flatnonzero(cells >= 0)  # [T']
     if not placed.size:
         return sparse.csr_matrix((num_obs, n))
-    if cells[placed].max() >= n:
-        raise ValueError(f"cells holds free index {cells[placed].max()}, the map has {n}")
     graph = free_cell_graph(grid) if graph is None else graph
     sources = np.unique(cells[placed])  # [S] sorted
     dist, _, nearest = dijkstra(graph, directed=False, indices=sources, min_only=True,
@@ -450,6 +446,17 @@ def voronoi_weights(
     return out
 
 
+def _placed(grid: OccupancyGrid, cells: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """``cells`` as [T] int64 free indices (-1: unplaced) and [T'] the positions of the placed
+    observations in it, checked against the grid's free cells (ValueError naming the index)."""
+    cells = np.asarray(cells, dtype=np.int64).reshape(-1)  # [T]
+    placed = np.flatnonzero(cells >= 0)  # [T']
+    n = int(grid.num_free)
+    if placed.size and cells[placed].max() >= n:
+        raise ValueError(f"cells holds free index {cells[placed].max()}, the map has {n}")
+    return cells, placed
+
+
 def _source_windows(
     grid: OccupancyGrid, sources: np.ndarray, limit: float
 ) -> list[tuple[np.ndarray, np.ndarray | None]]:
@@ -484,74 +491,3 @@ def _source_windows(
 def _local(chunk: np.ndarray, window: np.ndarray | None) -> np.ndarray:
     """The positions of ``chunk``'s free indices in ``window`` (the indices themselves if None)."""
     return chunk if window is None else np.searchsorted(window, chunk)
-
-
-def spread_counts(weights: sparse.csr_matrix, counts: np.ndarray, cells: np.ndarray) -> np.ndarray:
-    """[M, K] weighted per-cell counts x~_c = sum_t w_tc x_t at the free indices ``cells`` [M]
-    (``weights`` [T, N] from :func:`footprint_weights`, ``counts`` [T, K] per observation)."""
-    counts = np.asarray(counts, dtype=np.float64)  # [T, K]
-    selected = weights.tocsc()[:, np.asarray(cells, dtype=np.int64)]  # [T, M]
-    return np.asarray(selected.T @ counts, dtype=np.float64).reshape(len(cells), counts.shape[1])
-
-
-@dataclass(frozen=True, eq=False)
-class SpreadSources:
-    """Weighted per-cell counts [M, K] as the product ``weights [M, S] @ sources [S, K]`` (module
-    docstring, "Factored counts"): S distinct footprints, the weights a CSR matrix."""
-
-    indptr: np.ndarray  # [M + 1] int64: row m's weights are entries indptr[m]:indptr[m + 1]
-    indices: np.ndarray  # [nnz] int64: the footprint of each weight, in [0, S)
-    weights: np.ndarray  # [nnz] float64: w_sc, footprint s's weight on the row's cell
-    sources: np.ndarray  # [S, K] float64: the summed counts of the observations of footprint s
-
-    @property
-    def shape(self) -> tuple[int, int]:
-        """(M, K): the shape of the counts this product equals."""
-        return self.indptr.size - 1, self.sources.shape[1]
-
-    def dense(self) -> np.ndarray:
-        """[M, K] the product, as :func:`spread_counts` gives it (to rounding)."""
-        rows = np.repeat(np.arange(self.shape[0]), np.diff(self.indptr))  # [nnz]
-        out = np.zeros(self.shape)  # [M, K]
-        np.add.at(out, rows, self.weights[:, None] * self.sources[self.indices])
-        return out
-
-    def pays(self) -> bool:
-        """Whether a product with it costs less than with the dense counts: S K + nnz < M K
-        multiply-adds a column of the other factor."""
-        num_rows, num_items = self.shape
-        return self.sources.size + self.weights.size < num_rows * num_items
-
-
-def spread_sources(
-    weights: sparse.csr_matrix, counts: np.ndarray, cells: np.ndarray
-) -> SpreadSources:
-    """The factored form of :func:`spread_counts`'s result for the same arguments: observations
-    whose rows of ``weights`` [T, N] are identical (one footprint) are summed into one source
-    row; unplaced observations (empty rows) are left out."""
-    counts = np.asarray(counts, dtype=np.float64)  # [T, K]
-    weights = weights.tocsr()
-    footprint: dict[tuple[bytes, bytes], int] = {}
-    members: list[int] = []  # [T'] the observations with a footprint
-    groups: list[int] = []  # [T'] the footprint of each
-    for t in range(weights.shape[0]):
-        start, stop = weights.indptr[t], weights.indptr[t + 1]
-        if start == stop:
-            continue
-        key = (weights.indices[start:stop].tobytes(), weights.data[start:stop].tobytes())
-        members.append(t)
-        groups.append(footprint.setdefault(key, len(footprint)))
-    group = np.asarray(groups, dtype=np.int64)  # [T']
-    member = np.asarray(members, dtype=np.int64)  # [T']
-    first = np.zeros(len(footprint), dtype=np.int64)  # [S] an observation of each footprint
-    first[group] = member
-    sources = np.zeros((len(footprint), counts.shape[1]))  # [S, K]
-    np.add.at(sources, group, counts[member])
-    on_cells = weights[first].tocsc()[:, np.asarray(cells, dtype=np.int64)].T.tocsr()  # [M, S]
-    on_cells.sort_indices()
-    return SpreadSources(
-        indptr=on_cells.indptr.astype(np.int64),
-        indices=on_cells.indices.astype(np.int64),
-        weights=on_cells.data.astype(np.float64),
-        sources=sources,
-    )

@@ -14,7 +14,7 @@ Each modality's product ``x log(phi)^T`` [M, L] is the sweep's largest piece of 
 an observation footprint spreads a few dozen observations over hundreds of cells (preset
 ``coarse``: M = 686 observed cells on room2ldk4, K = 205 image classes, L = 120). There the
 counts are a product themselves, ``x = A X`` with S distinct footprints
-(:class:`~spcopyro.data.footprint.SpreadSources`, S = 75 on room2ldk4), and the table is built
+(:class:`~spcopyro.data.factored_counts.SpreadSources`, S = 75 on room2ldk4), and the table is built
 as ``A (X log(phi)^T)``: S K L + nnz(A) L multiply-adds instead of M K L, a ninth there.
 Both orders give the same table to rounding (about 1e-15 relative); a modality without a
 footprint, or whose factored form would not pay, takes the dense product.
