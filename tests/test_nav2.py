@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import re
 
 import numpy as np
 import pytest
@@ -413,6 +414,29 @@ def test_topics_follow_the_robots_namespace(fit, tmp_path):
         from spcopyro.robot.nav2 import check_namespace
 
         check_namespace("robot 1")
+
+
+@pytest.mark.parametrize(
+    ("namespace", "expected"),
+    [("robot1", "robot1"), ("/fleet/robot1/", "fleet/robot1"), ("_hidden", "_hidden"),
+     ("/fleet/_robot1", "fleet/_robot1"), ("robot__1", "robot__1"), ("/", None), ("", None)],
+)  # fmt: skip
+def test_a_namespace_follows_ros2s_rules(namespace, expected):
+    """A namespace as ROS 2 validates it (rmw_validate_namespace): a part may start with ``_``
+    (a hidden namespace, e.g. ``/fleet/_robot1``), which was refused as not starting with a
+    letter; a part starting with a digit, an empty part or another character is refused, the
+    error naming the value."""
+    from spcopyro.robot.nav2 import check_namespace
+
+    assert check_namespace(namespace) == expected
+
+
+@pytest.mark.parametrize("namespace", ["robot 1", "1robot", "fleet/2", "fleet//robot1", "robot-1"])
+def test_a_namespace_ros2_refuses_is_refused_by_its_value(namespace):
+    from spcopyro.robot.nav2 import check_namespace
+
+    with pytest.raises(ValueError, match=re.escape(f"namespace {namespace!r}: ROS 2 namespaces")):
+        check_namespace(namespace)
 
 
 def test_a_coarse_fits_main_map_is_the_robots_map_it_was_coarsened_from(fit, tmp_path, capsys):

@@ -276,15 +276,18 @@ def topic(name: str, namespace: str | None = None) -> str:
 
 
 def check_namespace(namespace: str | None) -> str | None:
-    """A ROS namespace (``robot1``, ``/fleet/robot1``), stripped of its outer slashes; None or
-    empty: none. ValueError for a name ROS would refuse."""
+    """A ROS namespace (``robot1``, ``/fleet/robot1``, ``/fleet/_robot1``), stripped of its outer
+    slashes; None or empty: none. ValueError for a name ROS 2 refuses
+    (``rmw_validate_namespace``): a character other than letters, digits, ``_`` and ``/``, an
+    empty part (``//``) or a part starting with a digit. A part may start with ``_`` (a hidden
+    namespace, which was refused here) or hold ``__`` (ROS 2 accepts both)."""
     if namespace is None or not namespace.strip("/"):
         return None
     clean = namespace.strip("/")
-    if not re.fullmatch(r"[A-Za-z][A-Za-z0-9_]*(/[A-Za-z][A-Za-z0-9_]*)*", clean):
+    if not re.fullmatch(r"[A-Za-z_][A-Za-z0-9_]*(/[A-Za-z_][A-Za-z0-9_]*)*", clean):
         raise ValueError(
-            f"namespace {namespace!r}: ROS names are letters, digits and underscores, each "
-            "part starting with a letter, parts separated by /"
+            f"namespace {namespace!r}: ROS 2 namespaces are letters, digits and underscores, "
+            "parts separated by single slashes, none starting with a digit"
         )
     return clean
 
