@@ -363,6 +363,12 @@ class DataPreparation:
             of ``footprint_reach_share`` cut at that geodesic distance from their observed
             cell, so a spot's share stays within it (a sparse house's doorway into the next,
             unobserved room; "Bounding the reach"). Refused where the share is 0.
+        footprint_reach_door_width: metres > 0, or None (the default: no cut): the Voronoi
+            cells of ``footprint_reach_share`` drawn within the room segments at doorways up
+            to that wide (:func:`spcopyro.maps.rooms.room_segments` on the grid the counts are
+            on; 1 m is the rooms start's and baseline (F)'s), so a room where no observation of
+            a modality lies gets none of its Voronoi weight while an open plan's one walled space
+            is spread as without it ("Voronoi cells within rooms"). Refused where the share is 0.
         word_scaling: s > 0: each utterance's word counts (or tf-idf weights) times s, the
             words' weight against the images and the MRF (1: the paper). A tempered likelihood,
             as ``feature_scaling`` is for images (``floor100`` counts a histogram as 100 draws).
@@ -385,6 +391,7 @@ class DataPreparation:
     cell_size: float | None = None
     footprint_reach_share: float = 0.0
     footprint_reach_radius: float | None = None
+    footprint_reach_door_width: float | None = None
 
     def __post_init__(self) -> None:
         def bad(name: str, why: str) -> ValueError:
@@ -424,6 +431,14 @@ class DataPreparation:
             raise bad("footprint_reach_radius", "cuts the Voronoi cells of "
                       "footprint_reach_share, which is 0: give a share > 0 "
                       "(--footprint-reach-share) or no radius")  # fmt: skip
+        door = self.footprint_reach_door_width
+        if door is not None and not (is_number(door) and math.isfinite(door) and door > 0):
+            raise bad("footprint_reach_door_width", "must be None (no cut) or a finite number "
+                      "of metres > 0: the doorways the Voronoi cells are cut at")  # fmt: skip
+        if door is not None and not share:  # as the radius: no count changed, refinement lost
+            raise bad("footprint_reach_door_width", "cuts the Voronoi cells of "
+                      "footprint_reach_share, which is 0: give a share > 0 "
+                      "(--footprint-reach-share) or no door width")  # fmt: skip
         ws = self.word_scaling
         if not (is_number(ws) and math.isfinite(ws) and ws > 0):
             raise bad("word_scaling", "must be a positive finite number (1: the paper)")
@@ -470,9 +485,9 @@ class DataPreparation:
 
     def to_json(self) -> dict[str, object]:
         """The fields as JSON values, as saved (config.json, checkpoints, records):
-        ``word_footprint_radius``, ``footprint_reach_share`` and ``footprint_reach_radius``
-        only where set (not None, not 0), so a preparation without them saves as before they
-        existed and what was saved then loads as it was."""
+        ``word_footprint_radius``, ``footprint_reach_share``, ``footprint_reach_radius`` and
+        ``footprint_reach_door_width`` only where set (not None, not 0), so a preparation
+        without them saves as before they existed and what was saved then loads as it was."""
         values = dataclasses.asdict(self)
         if self.word_footprint_radius is None:
             del values["word_footprint_radius"]
@@ -480,6 +495,8 @@ class DataPreparation:
             del values["footprint_reach_share"]
         if self.footprint_reach_radius is None:
             del values["footprint_reach_radius"]
+        if self.footprint_reach_door_width is None:
+            del values["footprint_reach_door_width"]
         return values
 
 

@@ -239,7 +239,8 @@ def _placement_lines(house: House, counts: CellCounts, prep: DataPreparation) ->
             own, at_cell = (f", words' {words:g} m", "") if words else ("", " (words at cell)")
         reach = ""
         if prep.footprint_reach_share:
-            reach = f" and {reach_cut_text(prep.footprint_reach_radius)}"
+            cut = reach_cut_text(prep.footprint_reach_radius, prep.footprint_reach_door_width)
+            reach = f" and {cut}"
         observed += (f"; {len(spread.cells)} within their {radius:g} m{own} footprints{at_cell}"
                      f"{reach}")  # fmt: skip
     p = counts.placement

@@ -273,6 +273,14 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         help="cut each observation's Voronoi cell of --footprint-reach-share at METRES "
         "geodesic from its cell (default: no limit)",
     )
+    p.add_argument(
+        "--footprint-reach-door-width",
+        type=float,
+        default=None,
+        metavar="METRES",
+        help="draw the Voronoi cells of --footprint-reach-share within the rooms cut at "
+        "doorways up to METRES wide, as the rooms start cuts them (1 m; default: no cut)",
+    )
     p.add_argument("--no-figures", action="store_true",
                    help="write no PNG figures (semantic_map, trace, house, uncertainty, "
                         "agreement), saving seconds and matplotlib's import: labels.npy, "

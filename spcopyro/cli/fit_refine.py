@@ -30,7 +30,8 @@ docs/variational.md, "From spcopyro fit on a large map") and how to stop at the 
 
 REFINED_AWAY = ("cell_size", "feature_scaling", "word_scaling", "footprint",
                 "footprint_kernel", "footprint_fov", "word_footprint",
-                "footprint_reach_share", "footprint_reach_radius")  # fmt: skip
+                "footprint_reach_share", "footprint_reach_radius",
+                "footprint_reach_door_width")  # fmt: skip
 """The options of the data preparation the refinement replaces (:mod:`spcopyro.fit.refine`):
 given on the command line, the recommended refinement is not run."""
 

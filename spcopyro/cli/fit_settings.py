@@ -123,6 +123,7 @@ def fit_settings(args: argparse.Namespace, house: House) -> tuple[SpCoSettings, 
         word_footprint_radius=args.word_footprint,
         footprint_reach_share=args.footprint_reach_share,
         footprint_reach_radius=args.footprint_reach_radius,
+        footprint_reach_door_width=args.footprint_reach_door_width,
     )  # fmt: skip
     further = {m.name for m in house.observations.modalities}
     for name in overrides["concentrations"] or {}:

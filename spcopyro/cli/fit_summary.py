@@ -98,7 +98,7 @@ def data_line(
             fov += f", words {_number(p.words_radius)} m" if p.words_radius else ", words at cell"
         parts.append(f"footprint {_number(p.footprint_radius)} m ({p.footprint_kernel}{fov})")
     if p.footprint_reach_share:
-        cut = reach_cut_text(p.footprint_reach_radius)
+        cut = reach_cut_text(p.footprint_reach_radius, p.footprint_reach_door_width)
         parts.append(f"reach share {_number(p.footprint_reach_share)} ({cut})")
     if p.snap_distance != DEFAULT_SNAP_DISTANCE:
         parts.append(f"snap distance {_number(p.snap_distance)} m")

@@ -125,6 +125,7 @@ def cell_counts(
     word_footprint_radius: float | None = None,
     footprint_reach_share: float = 0.0,
     footprint_reach_radius: float | None = None,
+    footprint_reach_door_width: float | None = None,
 ) -> CellCounts:
     """Sum the observations per free cell (the model's sufficient statistics).
 
@@ -163,7 +164,8 @@ def cell_counts(
     utterances' own (0: their cell; the fov is read only where ``footprint_radius`` > 0);
     ``footprint_reach_share`` e > 0 moves a share e of each observation's weight to its geodesic
     Voronoi cell among its modality's observed cells (with both radii 0 too), cut at
-    ``footprint_reach_radius`` metres from its cell (None: no limit). All 0 leave the
+    ``footprint_reach_radius`` metres from its cell (None: no limit) and drawn within the room
+    segments at doorways up to ``footprint_reach_door_width`` metres (None: no cut). All 0 leave the
     counts as without them. ``warn=False``: no warnings about observations left out
     (:func:`say_placement_warnings`: a caller counting the same observations twice says them once,
     a fit after its placement check). ``word_scaling`` s multiplies every utterance's word counts
@@ -212,10 +214,12 @@ def cell_counts(
         # within shared_footprints (spcopyro fit), spread once for its summary and model data
         key = (feature_scaling, word_weighting, snap_distance, vocab, word_scaling,
                footprint_radius, footprint_kernel, footprint_fov, words_radius,
-               footprint_reach_share, footprint_reach_radius)  # fmt: skip
+               footprint_reach_share, footprint_reach_radius,
+               footprint_reach_door_width)  # fmt: skip
         return shared((grid, obs), key, lambda: _with_footprint(
             plain, grid, obs, features, words, placed, (footprint_radius, words_radius),
-            footprint_kernel, footprint_fov, (footprint_reach_share, footprint_reach_radius),
+            footprint_kernel, footprint_fov,
+            (footprint_reach_share, footprint_reach_radius, footprint_reach_door_width),
         ))  # fmt: skip
     lost = scaled_away(obs.image_features, features)  # [n] images left with nothing
     image_ok = image_cell >= 0  # [T] bool
@@ -302,6 +306,7 @@ def prepared_cell_counts(
         word_footprint_radius=preparation.word_footprint_radius, vocabulary=vocabulary,
         footprint_reach_share=preparation.footprint_reach_share,
         footprint_reach_radius=preparation.footprint_reach_radius,
+        footprint_reach_door_width=preparation.footprint_reach_door_width,
     )  # fmt: skip
 
 
@@ -315,13 +320,13 @@ def _with_footprint(
     radii: tuple[float, float],
     kernel: FootprintKernel,
     fov: float | None,
-    reach: tuple[float, float | None] = (0.0, None),
+    reach: tuple[float, float | None, float | None] = (0.0, None, None),
 ) -> CellCounts:
     """``plain`` (the counts without footprint: placement report, vocabulary) with every
     observation spread over its footprint (:func:`~spcopyro.data.footprint.footprint_weights`):
     ``radii`` (metres) the images' and further modalities', then the utterances' (0: own cell);
-    ``reach`` (share, radius) of each over its Voronoi cell among its modality's, cut at the
-    radius (the reach share).
+    ``reach`` (share, radius, door width) of each over its Voronoi cell among its modality's,
+    cut at the radius and drawn within the rooms at that door width (the reach share).
     ``features`` [T, K] and ``words`` [U, V] are the scaled / weighted rows per observation,
     ``placed`` the free index of each image, utterance and further observation (-1: unplaced)."""
     fov = fov if radii[0] else None  # images at their own cell (words' footprint only): unread
@@ -331,7 +336,8 @@ def _with_footprint(
     image_cell, word_cell, further_cells = placed
     bar = _footprint_bar(grid, max(radii), (image_cell, word_cell, *further_cells))
     graph = free_cell_graph(grid)
-    each = dict(graph=graph, advance=bar.update, reach_share=reach[0], reach_radius=reach[1])
+    each = dict(graph=graph, advance=bar.update, reach_share=reach[0], reach_radius=reach[1],
+                reach_door_width=reach[2])  # fmt: skip
     image_w = footprint_weights(grid, image_cell, radii[0], kernel, yaw=obs.image_yaw, fov=fov,
                                 **each)  # fmt: skip  # [T, N]
     word_w = footprint_weights(grid, word_cell, radii[1], kernel, **each)  # [U, N]

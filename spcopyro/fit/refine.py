@@ -137,13 +137,13 @@ def refined_settings(settings: SpCoSettings, model_cells: int, map_cells: int) -
     return settings.replace(
         alpha=settings.model.alpha * scale, feature_scaling="floor100", word_scaling=1.0,
         footprint_radius=0.0, word_footprint_radius=None, footprint_fov=None, cell_size=None,
-        footprint_reach_share=0.0, footprint_reach_radius=None,
+        footprint_reach_share=0.0, footprint_reach_radius=None, footprint_reach_door_width=None,
     )  # fmt: skip
 
 
 REPLACED_FIELDS = ("feature_scaling", "word_scaling", "footprint_radius", "footprint_kernel",
                    "footprint_fov", "word_footprint_radius", "footprint_reach_share",
-                   "footprint_reach_radius")  # fmt: skip
+                   "footprint_reach_radius", "footprint_reach_door_width")  # fmt: skip
 """The :class:`~spcopyro.config.DataPreparation` fields :func:`refined_settings` sets a value of
 its own for (the cell size too, but the refinement is on the map's cells by definition)."""
 
