@@ -1128,7 +1128,7 @@ def test_the_maps_read_the_drawn_seed_s_stored_maps_once(tmp_path, monkeypatch):
     monkeypatch.setattr(maps, "plot_label_maps", lambda *args: drawn.append(args[1]) or args[2])
     assert len(maps.write_house_maps(rows, tmp_path)) == 2
     drawn_files = sorted(row["label_map"] for row in rows if row["seed"] == 0)
-    assert sorted(read) == drawn_files  # seed 0's, each once (was every seed's, 12 reads)
+    assert sorted(read) == drawn_files  # seed 0's, each once (was every seed's, 8 reads)
     names = [[name for name, _ in panels] for panels in drawn]
     assert names == [["gibbs", "other / gibbs"]] * 2
     assert all((labels == 0).all() for panels in drawn for _, labels in panels)  # the first seed

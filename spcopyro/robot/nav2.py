@@ -243,8 +243,8 @@ the file system's limit of 255 bytes, and the export failed)."""
 def _ros_name(word: str, index: int) -> str:
     """A ROS-name-safe form of the vocabulary's word ``index``: lower case, ``[a-z0-9_]`` only,
     accents dropped (``café``: ``cafe``), no repeated underscore (``rock--roll``: ``rock_roll``;
-    ROS 2 names must not repeat one), at most :data:`MAX_NAME_CHARS` characters; ``word3`` for
-    one with no such letter (``台所``)."""
+    ROS 2's naming article discourages one, though its validator accepts it), at most
+    :data:`MAX_NAME_CHARS` characters; ``word3`` for one with no such letter (``台所``)."""
     ascii_word = unicodedata.normalize("NFKD", word.lower()).encode("ascii", "ignore").decode()
     name = re.sub(r"[^a-z0-9]+", "_", ascii_word).strip("_")
     return name[:MAX_NAME_CHARS].rstrip("_") or f"word{index}"
@@ -262,7 +262,7 @@ def mask_names(mode: str, words: list[str], indices: list[int]) -> list[str]:
         base = name = f"{mode}_{_ros_name(word, index)}"
         k = 1
         while name in taken or f"{name}_params" in taken:  # café and cafe: cafe, cafe_2
-            k += 1  # (was cafe_, whose filter was cafe__filter: a ROS 2 name repeats no "_")
+            k += 1  # (was cafe_, whose filter was cafe__filter: ROS 2's article discourages "__")
             name = f"{base}_{k}"
         names.append(name)
         taken.update((name, f"{name}_params"))
@@ -277,10 +277,11 @@ def topic(name: str, namespace: str | None = None) -> str:
 
 def check_namespace(namespace: str | None) -> str | None:
     """A ROS namespace (``robot1``, ``/fleet/robot1``, ``/fleet/_robot1``), stripped of its outer
-    slashes; None or empty: none. ValueError for a name ROS 2 refuses
-    (``rmw_validate_namespace``): a character other than letters, digits, ``_`` and ``/``, an
-    empty part (``//``) or a part starting with a digit. A part may start with ``_`` (a hidden
-    namespace, which was refused here) or hold ``__`` (ROS 2 accepts both)."""
+    slashes; None or empty: none. ValueError for a name refused by the character and part rules
+    of ROS 2's ``rmw_validate_namespace`` (its length limit is not checked): a character other
+    than letters, digits, ``_`` and ``/``, an empty part (``//``) or a part starting with a digit.
+    A part may start with ``_`` (a hidden namespace, which was refused here) or hold ``__`` (ROS 2
+    accepts both)."""
     if namespace is None or not namespace.strip("/"):
         return None
     clean = namespace.strip("/")

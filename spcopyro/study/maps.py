@@ -222,14 +222,13 @@ def source_panels(
     ``rows``); None when no map is stored. Reads the drawn seed's files only, each once (a
     lower seed's rows, tried first, store none)."""
     mine = [(int(r["seed"]), r) for r in rows if r["data"] == data]  # type: ignore[call-overload]
-    maps: list[tuple[dict[str, object], StoredMap]] = []
-    for chosen in sorted({s for s, _ in mine}) if seed is None else [seed]:  # the first stored
-        loaded = [(r, load_label_map(folder, r)) for s, r in mine if s == chosen]
+    tried = sorted({s for s, _ in mine}) if seed is None else [seed]
+    for seed in tried:  # the first with a stored map
+        loaded = [(r, load_label_map(folder, r)) for s, r in mine if s == seed]
         maps = [(r, stored) for r, stored in loaded if stored is not None]
         if maps:
-            seed = chosen
             break
-    if not maps:
+    else:
         return None
     grid, truth = maps[0][1].grid, maps[0][1].truth
     # a public house's truth is this project's (public_truth: from where place words were
