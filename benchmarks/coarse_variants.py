@@ -50,7 +50,10 @@ stages with the share in the first (the refinement prepares the data as ``auto``
 both stages (:data:`STAGE_TWO`: the refinement's settings patched for the variant's fits, a
 screening, not an option of the library). ``reach 0.25 within R m``: the share's Voronoi cells
 cut at R metres from their cell (``footprint_reach_radius``; sparse seed 1's spots reach through
-a doorway into the next room without it), in the first stage.
+a doorway into the next room without it), in the first stage. ``reach E in rooms``: the share's
+Voronoi cells drawn within the room segments at ``DEFAULT_DOOR_WIDTH`` (1 m) doors
+(``footprint_reach_door_width``), in the first stage (``, stage two too``: in the refinement as
+well, :data:`STAGE_TWO`).
 """
 
 from __future__ import annotations
@@ -68,6 +71,7 @@ import numpy as np
 import real_houses as rh
 from bench_cli import COUNT, INDEX, dataset_root, quick_or, results_path, run_main
 
+from spcopyro.baselines.geometry import DEFAULT_DOOR_WIDTH
 from spcopyro.data import load_house
 from spcopyro.experiments.public_truth import public_truth
 from spcopyro.experiments.table import PUBLIC_CATEGORIES
@@ -81,6 +85,8 @@ STAGE_TWO = "stage two"
 (:func:`variant`)."""
 REACH = "footprint_reach_share"
 REACH_RADIUS = "footprint_reach_radius"
+REACH_DOORS = "footprint_reach_door_width"
+IN_ROOMS = {REACH_DOORS: DEFAULT_DOOR_WIDTH}
 VARIANTS: dict[str, tuple[str, dict[str, object]]] = {
     "coarse": (BASE, {}),
     "paper-dp": ("paper-dp", {}),
@@ -110,6 +116,12 @@ VARIANTS: dict[str, tuple[str, dict[str, object]]] = {
     "reach 0.2": (BASE, {REACH: 0.2}),
     "reach 0.25 within 2 m": (BASE, {REACH: 0.25, REACH_RADIUS: 2.0}),
     "reach 0.25 within 3 m": (BASE, {REACH: 0.25, REACH_RADIUS: 3.0}),
+    "reach 0.25 in rooms": (BASE, {REACH: 0.25, **IN_ROOMS}),
+    "reach 0.2 in rooms": (BASE, {REACH: 0.2, **IN_ROOMS}),
+    "reach 0.25 in rooms, stage two too": (
+        BASE,
+        {REACH: 0.25, **IN_ROOMS, STAGE_TWO: {REACH: 0.25, **IN_ROOMS}},
+    ),
 }
 """Name -> (preset, overrides), in the order run: ``coarse`` and ``paper-dp`` first (the
 references at the same sweeps), then the variants by the prior that they could raise held-out
