@@ -131,8 +131,7 @@ def test_the_cut_is_worded_in_one_place_for_both_summary_lines():
     """The fit summary's data line (fit_summary.data_line) and its observed-cells line
     (cli.common) each built "Voronoi cells within R m"; both now say reach_cut_text's words."""
     from spcopyro.cli.common import _summary
-    from spcopyro.cli.fit_summary import data_line
-    from spcopyro.data.footprint import reach_cut_text
+    from spcopyro.cli.fit_summary import data_line, reach_cut_text
     from spcopyro.data.model_grid import model_house
     from spcopyro.synthetic import HouseSpec, make_house
 

@@ -24,7 +24,6 @@ from spcopyro.data import Observations, place_observations
 from spcopyro.data.counts import prepared_cell_counts
 from spcopyro.data.footprint import (
     footprint_weights,
-    reach_cut_text,
     room_of_free_cells,
     shared_footprints,
     voronoi_weights,
@@ -168,7 +167,7 @@ def test_the_refinement_replaces_the_door_width():
 
 
 def test_the_summary_says_the_cut():
-    from spcopyro.cli.fit_summary import data_line
+    from spcopyro.cli.fit_summary import data_line, reach_cut_text
 
     assert reach_cut_text(None, 1.0) == "Voronoi cells within rooms at 1 m doors"
     assert reach_cut_text(2.0, 1.0) == "Voronoi cells within 2 m, within rooms at 1 m doors"

@@ -24,6 +24,7 @@ from spcopyro.maps.rooms import (
     DEFAULT_MIN_ROOM_AREA,
     auto_door_width,
     counts_as_room,
+    free_cell_rooms,
     room_count,
     room_segments,
 )
@@ -35,6 +36,7 @@ __all__ = [
     "DEFAULT_MIN_ROOM_AREA",
     "auto_door_width",
     "counts_as_room",
+    "free_cell_rooms",
     "geometry_semantic_map",
     "room_count",
     "room_segments",

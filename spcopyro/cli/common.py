@@ -27,7 +27,6 @@ from spcopyro.data import (
     load_house,
     prepared_cell_counts,
 )
-from spcopyro.data.footprint import reach_cut_text
 
 if TYPE_CHECKING:
     from spcopyro.data.counts import CellCounts
@@ -239,6 +238,8 @@ def _placement_lines(house: House, counts: CellCounts, prep: DataPreparation) ->
             own, at_cell = (f", words' {words:g} m", "") if words else ("", " (words at cell)")
         reach = ""
         if prep.footprint_reach_share:
+            from spcopyro.cli.fit_summary import reach_cut_text
+
             cut = reach_cut_text(prep.footprint_reach_radius, prep.footprint_reach_door_width)
             reach = f" and {cut}"
         observed += (f"; {len(spread.cells)} within their {radius:g} m{own} footprints{at_cell}"

@@ -28,6 +28,7 @@ __all__ = [
     "inference_line",
     "model_line",
     "objective_line",
+    "reach_cut_text",
     "stopped_line",
 ]
 
@@ -41,6 +42,17 @@ def _number(value: float) -> str:
     text = f"{value:g}"
     mantissa, e, exponent = text.partition("e")
     return f"{mantissa}e{int(exponent)}" if e else text
+
+
+def reach_cut_text(radius: float | None, door_width: float | None = None) -> str:
+    """How the reach share's Voronoi cells are cut, as the fit's summary says it (its data line
+    and its observed-cells line, :mod:`spcopyro.cli.common`): ``"Voronoi cells"``, with
+    ``" within 2 m"`` for a radius and ``" within rooms at 1 m doors"`` for a door width, both
+    joined by a comma (numbers as ``:g`` writes them)."""
+    cuts = [] if radius is None else [f"within {radius:g} m"]
+    if door_width is not None:
+        cuts.append(f"within rooms at {door_width:g} m doors")
+    return f"Voronoi cells {', '.join(cuts)}" if cuts else "Voronoi cells"
 
 
 def model_line(config: SpCoConfig, preset: str | None, images_missing: bool = False) -> str:
@@ -80,7 +92,6 @@ def data_line(
     is (``auto: 27 of 54 utterances are sentences (50%; tf-idf from 30%)``;
     :func:`spcopyro.cli.fit_settings.word_weighting_note`), None for counts as ever."""
     from spcopyro.config import DEFAULT_SNAP_DISTANCE
-    from spcopyro.data.footprint import reach_cut_text
 
     p = preparation
     parts = [_cells(p.cell_size, grid), f"feature scaling {_value(p.feature_scaling)}"]

@@ -165,7 +165,6 @@ __all__ = [
     "release_shared_footprints",
     "room_of_free_cells",
     "shared_footprints",
-    "reach_cut_text",
     "spread_sources",
     "voronoi_weights",
 ]
@@ -264,27 +263,20 @@ def _limit(radius: float) -> float:
     return float(radius) * (1 + 1e-9) + 1e-12
 
 
+def _check_optional_metres(name: str, value: float | None, none: str, metres: str) -> None:
+    """ValueError naming ``name`` and ``value`` unless it is None (what ``none`` says) or a
+    finite number of metres > 0 (what ``metres`` says they are)."""
+    if value is not None and not (is_number(value) and math.isfinite(value) and value > 0):
+        raise ValueError(f"{name}={value!r}: must be None ({none}) or a finite number of "
+                         f"metres > 0 ({metres})")  # fmt: skip
+
+
 def _check_reach_radius(radius: float | None) -> None:
-    if radius is not None and not (is_number(radius) and math.isfinite(radius) and radius > 0):
-        raise ValueError(f"footprint_reach_radius={radius!r}: must be None (no limit) or a "
-                         "finite number of metres > 0 (the Voronoi cells' cut)")  # fmt: skip
+    _check_optional_metres("footprint_reach_radius", radius, "no limit", "the Voronoi cells' cut")
 
 
 def _check_door_width(width: float | None) -> None:
-    if width is not None and not (is_number(width) and math.isfinite(width) and width > 0):
-        raise ValueError(f"footprint_reach_door_width={width!r}: must be None (no cut) or a "
-                         "finite number of metres > 0 (the rooms' doorways)")  # fmt: skip
-
-
-def reach_cut_text(radius: float | None, door_width: float | None = None) -> str:
-    """How the reach share's Voronoi cells are cut, as the fit's summary says it (its data line
-    and its observed-cells line): ``"Voronoi cells"``, with ``" within 2 m"`` for a radius and
-    ``" within rooms at 1 m doors"`` for a door width, both joined by a comma (numbers as
-    ``:g`` writes them)."""
-    cuts = [] if radius is None else [f"within {radius:g} m"]
-    if door_width is not None:
-        cuts.append(f"within rooms at {door_width:g} m doors")
-    return f"Voronoi cells {', '.join(cuts)}" if cuts else "Voronoi cells"
+    _check_optional_metres("footprint_reach_door_width", width, "no cut", "the rooms' doorways")
 
 
 def _check(radius: float, kernel: str, fov: float | None) -> None:
@@ -506,36 +498,35 @@ def _placed(grid: OccupancyGrid, cells: np.ndarray) -> tuple[np.ndarray, np.ndar
 
 
 def room_of_free_cells(grid: OccupancyGrid, door_width: float) -> np.ndarray:
-    """[N] int64 room segment (>= 0) of every free cell, in free-index order: the rooms of
-    :func:`~spcopyro.maps.rooms.room_segments` at doorways up to ``door_width`` metres (its
-    default smallest room), computed once per grid and width within :func:`shared_footprints`."""
+    """[N] int64 room segment (>= 0) of every free cell, in free-index order
+    (:func:`~spcopyro.maps.rooms.free_cell_rooms` at doorways up to ``door_width`` metres, no
+    bar), computed once per grid and width within :func:`shared_footprints`."""
+    from spcopyro.maps.rooms import free_cell_rooms
 
-    def segment() -> np.ndarray:
-        from spcopyro.maps.rooms import room_segments
-
-        rooms = room_segments(grid, door_width=door_width, progress=False)  # [H, W], -1 off free
-        free_cells = np.asarray(grid.free_cells, dtype=np.int64)  # [N, 2] (row, col)
-        of_free = rooms[free_cells[:, 0], free_cells[:, 1]]  # [N]
-        if of_free.size and of_free.min() < 0:  # room_segments labels every free cell
-            raise RuntimeError(f"room_segments left {int((of_free < 0).sum())} free cell(s) "
-                               f"in no room at {door_width:g} m doors")  # fmt: skip
-        return of_free
-
-    return shared((grid,), ("room segments", float(door_width)), segment)
+    key = ("room segments", float(door_width))
+    return shared((grid,), key, lambda: free_cell_rooms(grid, door_width, progress=False))
 
 
 def _within_rooms(
     grid: OccupancyGrid, graph: sparse.csr_matrix, door_width: float
 ) -> sparse.csr_matrix:
     """[N, N] ``graph`` without its edges between free cells of different room segments at
-    ``door_width`` metres (:func:`room_of_free_cells`): every path stays in one room."""
-    from scipy import sparse
+    ``door_width`` metres (:func:`room_of_free_cells`): every path stays in one room. ``graph``
+    itself where no edge joins two rooms (one walled space); computed once per grid, graph and
+    width within :func:`shared_footprints`."""
 
-    room = room_of_free_cells(grid, door_width)  # [N]
-    edges = graph.tocoo()  # [E] both directions
-    keep = room[edges.row] == room[edges.col]  # [E] bool
-    kept = (edges.data[keep], (edges.row[keep], edges.col[keep]))
-    return sparse.coo_matrix(kept, shape=graph.shape).tocsr()
+    def cut() -> sparse.csr_matrix:
+        from scipy import sparse
+
+        room = room_of_free_cells(grid, door_width)  # [N]
+        edges = graph.tocoo()  # [E] both directions
+        keep = room[edges.row] == room[edges.col]  # [E] bool
+        if keep.all():
+            return graph
+        kept = (edges.data[keep], (edges.row[keep], edges.col[keep]))
+        return sparse.coo_matrix(kept, shape=graph.shape).tocsr()
+
+    return shared((grid, graph), ("graph within rooms", float(door_width)), cut)
 
 
 def _source_windows(

@@ -138,20 +138,19 @@ def rooms_initial_labels(
     house: House, config: SpCoConfig, generator: torch.Generator, door_width: float | None = None
 ) -> torch.Tensor:
     """[N] labels from the map alone: one concept per room of a geometric room segmentation
-    (:func:`spcopyro.baselines.geometry.room_segments`, the (F) baseline's; doorways up to
+    (:func:`spcopyro.maps.rooms.room_segments`, the (F) baseline's; doorways up to
     ``door_width`` metres, default its own, separate rooms), rooms beyond L sharing concepts
-    (room r gets r mod L), cells outside every room (specks under the smallest room) uniformly
-    random. A start, not a prior: the sampler then lets the observations move, merge (merge
-    moves) and split the regions; only the speed at which it gets there depends on the start."""
-    from spcopyro.baselines.geometry import DEFAULT_DOOR_WIDTH, room_segments
+    (room r gets r mod L). The segmentation labels every free cell (cut-off pieces are segments
+    of their own); the [N] uniform draw beside it is kept so that the generator's stream, and
+    with it every seeded fit, is as before, though no cell takes it. A start, not a prior: the
+    sampler then lets the observations move, merge (merge moves) and split the regions; only the
+    speed at which it gets there depends on the start."""
+    from spcopyro.maps.rooms import DEFAULT_DOOR_WIDTH, free_cell_rooms
 
-    grid = house.grid
     width = DEFAULT_DOOR_WIDTH if door_width is None else door_width
-    rooms = room_segments(grid, door_width=width)  # [H, W], -1 off the rooms
-    cells = np.asarray(grid.free_cells)  # [N, 2] (row, column) in free-index order
-    room = torch.as_tensor(rooms[cells[:, 0], cells[:, 1]], dtype=torch.long)  # [N]
+    room = torch.as_tensor(free_cell_rooms(house.grid, width), dtype=torch.long)  # [N] >= 0
     L = config.num_concepts
-    random = torch.randint(L, (len(room),), generator=generator)  # [N]
+    random = torch.randint(L, (len(room),), generator=generator)  # [N] the stream, unused
     return torch.where(room >= 0, room % L, random)
 
 

@@ -40,8 +40,8 @@ Not re-exported (import them from their module, ``from spcopyro.maps.grid import
   ``read_map_yaml``.
 * :mod:`~spcopyro.maps.palette`: ``concept_palette``, ``delta_e``, ``delta_e94``, ``srgb_to_lab``.
 * :mod:`~spcopyro.maps.rooms`: ``AUTO_DOOR_WIDTHS``, ``DEFAULT_DOOR_WIDTH``,
-  ``DEFAULT_MIN_ROOM_AREA``, ``auto_door_width``, ``counts_as_room``, ``room_count``,
-  ``room_segments`` (room segmentation at a door width; also in
+  ``DEFAULT_MIN_ROOM_AREA``, ``auto_door_width``, ``counts_as_room``, ``free_cell_rooms``,
+  ``room_count``, ``room_segments`` (room segmentation at a door width; also in
   :mod:`spcopyro.baselines.geometry`).
 """
 

@@ -56,6 +56,7 @@ __all__ = [
     "DEFAULT_MIN_ROOM_AREA",
     "auto_door_width",
     "counts_as_room",
+    "free_cell_rooms",
     "room_count",
     "room_segments",
 ]
@@ -168,6 +169,16 @@ def room_segments(
     bar.update()  # the leftover pieces and the numbering: one step
     bar.close()
     return labels
+
+
+def free_cell_rooms(
+    grid: OccupancyGrid, door_width: float = DEFAULT_DOOR_WIDTH, *, progress: bool | None = None
+) -> np.ndarray:
+    """``[N]`` int64 room segment (>= 0) of every free cell, in free-index order: the segments of
+    :func:`room_segments` at doorways up to ``door_width`` metres (its default smallest room;
+    ``progress`` as its), which labels every free cell. ``grid.free``'s raster order is the free
+    index's (:attr:`~spcopyro.maps.grid.OccupancyGrid.free_index`), so its mask picks them."""
+    return room_segments(grid, door_width=door_width, progress=progress)[grid.free]  # [N]
 
 
 def counts_as_room(cells, res: float, min_room_area: float):
