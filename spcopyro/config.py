@@ -27,7 +27,11 @@ Presets (:func:`preset`) give both layers at once, as :class:`SpCoSettings`:
     ``auto``'s model on a model grid of 0.25 m cells (``cell_size``: the Potts border cost per
     metre and the label-count prior no longer grow with the map's resolution), each utterance
     counted 10 times (``word_scaling``) and spread over a 0.75 m footprint, image histograms as
-    probabilities (one observation each, not 100 draws), and ``auto``'s inference settings
+    probabilities (one observation each, not 100 draws), a fifth of each observation's weight
+    spread over its geodesic Voronoi cell within its room, cut at 1 m doorways
+    (``footprint_reach_share`` 0.2, ``footprint_reach_door_width`` 1.0: the rooms start's
+    ``DEFAULT_DOOR_WIDTH``; docs/real_houses.md, "Reaching the Voronoi border"; since
+    2026-12-06), and ``auto``'s inference settings
     plus region relabel moves in a fifth of the sweeps (:mod:`spcopyro.gibbs.region_move`: a
     room carried by two concepts merges; docs/real_houses.md, "Region relabel moves"). Its
     recommended inference settings add ``refine="auto"``: where the images tell the places
@@ -120,6 +124,8 @@ PRESETS: dict[str, dict[str, object]] = {
     "coarse": dict(
         prior="dp", alpha=1e7, beta=0.1, chi=1.0, gamma=3.0, num_concepts=120,
         feature_scaling="probability", cell_size=0.25, word_scaling=10.0, footprint_radius=0.75,
+        # the door width: spcopyro.maps.rooms.DEFAULT_DOOR_WIDTH, the rooms start's (plain here)
+        footprint_reach_share=0.2, footprint_reach_door_width=1.0,
     ),
 }  # fmt: skip
 DEFAULT_PRESET = "coarse"
@@ -357,18 +363,21 @@ class DataPreparation:
             over its geodesic Voronoi cell among the observed cells of its modality, so that
             some of each place's evidence reaches the border half-way to the next observation
             (:mod:`spcopyro.data.footprint`, "Reaching the Voronoi border"); still one
-            observation in total, the same tempered product. 0 (the default): off, the
-            footprint exactly as without it.
+            observation in total, the same tempered product. 0 (the field's default; preset
+            ``coarse``'s is 0.2): off, the footprint exactly as without it. A 0 given over a
+            preset's share drops the preset's cuts below (:data:`REACH_CUTS`).
         footprint_reach_radius: metres > 0, or None (the default: no limit): the Voronoi cells
             of ``footprint_reach_share`` cut at that geodesic distance from their observed
             cell, so a spot's share stays within it (a sparse house's doorway into the next,
             unobserved room; "Bounding the reach"). Refused where the share is 0.
-        footprint_reach_door_width: metres > 0, or None (the default: no cut): the Voronoi
-            cells of ``footprint_reach_share`` drawn within the room segments at doorways up
-            to that wide (:func:`spcopyro.maps.rooms.room_segments` on the grid the counts are
-            on; 1 m is the rooms start's and baseline (F)'s), so a room where no observation of
-            a modality lies gets none of its Voronoi weight while an open plan's one walled space
-            is spread as without it ("Voronoi cells within rooms"). Refused where the share is 0.
+        footprint_reach_door_width: metres > 0, or None (the field's default: no cut; preset
+            ``coarse``'s is 1.0): the Voronoi cells of ``footprint_reach_share`` drawn within
+            the room segments at doorways up to that wide
+            (:func:`spcopyro.maps.rooms.room_segments` on the grid the counts are on; 1 m is the
+            rooms start's and baseline (F)'s), so a room where no observation of a modality lies
+            gets none of its Voronoi weight while an open plan's one walled space is spread as
+            without it ("Voronoi cells within rooms"). Refused where the share is 0 (a preset's
+            door width is dropped instead where a share of 0 is given over the preset's).
         word_scaling: s > 0: each utterance's word counts (or tf-idf weights) times s, the
             words' weight against the images and the MRF (1: the paper). A tempered likelihood,
             as ``feature_scaling`` is for images (``floor100`` counts a histogram as 100 draws).
@@ -500,6 +509,14 @@ class DataPreparation:
         return values
 
 
+REACH_CUTS: tuple[str, ...] = ("footprint_reach_radius", "footprint_reach_door_width")
+"""The :class:`DataPreparation` fields that cut the reach share's Voronoi cells, refused where
+the share is 0. A share of 0 given over a preset's (``coarse``'s 0.2: :func:`preset`'s
+overrides, :meth:`SpCoSettings.replace`'s changes) drops the cuts the caller did not choose
+(the preset's 1 m door width): the share is off, and its cuts with it; one the caller chose is
+still refused."""
+
+
 @dataclass(frozen=True)
 class SpCoSettings:
     """The model's hyperparameters and the data preparation they were chosen with (a preset).
@@ -529,6 +546,10 @@ class SpCoSettings:
             )
         model = {k: v for k, v in changes.items() if k in model_fields}
         data = {k: v for k, v in changes.items() if k in data_fields}
+        if "footprint_reach_share" in data and not data["footprint_reach_share"]:
+            for cut in REACH_CUTS:  # a cut the caller did not choose goes with the share
+                if cut not in changes and cut not in self.chosen:
+                    data[cut] = None
         return SpCoSettings(
             self.model.replace(**model) if model else self.model,
             self.data.replace(**data) if data else self.data,
@@ -545,12 +566,18 @@ def preset(name: str = DEFAULT_PRESET, **overrides: object) -> SpCoSettings:
     Overrides whose value is ``None`` are ignored, so CLI options can be passed straight through:
     ``preset("coarse", cell_size=None)`` keeps the preset's 0.25 m; ``cell_size="map"`` (or
     ``SpCoSettings.replace(cell_size=None)``, which sets what it is given) is the map's own cells.
+    ``preset("coarse", footprint_reach_share=0)`` turns the reach share off and drops the
+    preset's door width with it (:data:`REACH_CUTS`).
     """
     if name not in PRESETS:
         raise ValueError(f"unknown preset {name!r}; choose one of {sorted(PRESETS)}")
     values = dict(PRESETS[name])
     given = {k: v for k, v in overrides.items() if v is not None}
     values.update(given)
+    if not values.get("footprint_reach_share"):  # a share of 0 given over coarse's 0.2:
+        for cut in REACH_CUTS:  # the preset's cuts of it go with it (a given one is refused)
+            if cut not in given:
+                values.pop(cut, None)
     if values.get("cell_size") == "map":  # the map's own cells, over a preset's cell size
         values["cell_size"] = None
     if values.get("num_concepts") is None:

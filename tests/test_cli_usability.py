@@ -61,7 +61,8 @@ def test_fit_help_names_the_default_presets_inference_and_footprint():
     """`--point-estimate` said 'vi with --preset auto, else map-visited' and `--footprint`
     'default 0' while the default preset coarse reports vi and spreads over 1 m (its footprint
     then, the default before 2026-12-06; 0.75 m since). The help says '--preset's value', so it
-    names no radius to go stale."""
+    names no radius to go stale. So do --footprint-reach-share and --footprint-reach-door-width,
+    which said 'default 0: off' and 'default: no cut' once coarse took 0.2 and 1 m (2026-12-06)."""
     from spcopyro.config import DEFAULT_PRESET, PRESETS, preset_inference
 
     fit = _subcommands(build_parser())["fit"]
@@ -71,6 +72,10 @@ def test_fit_help_names_the_default_presets_inference_and_footprint():
     if PRESETS[DEFAULT_PRESET].get("footprint_radius"):
         assert "default 0" not in helps["footprint"]
         assert "--preset's value" in helps["footprint"]
+    if PRESETS[DEFAULT_PRESET].get("footprint_reach_share"):  # coarse's 0.2 since 2026-12-06
+        for option in ("footprint_reach_share", "footprint_reach_door_width"):
+            assert "default 0" not in helps[option] and "default: no cut" not in helps[option]
+            assert "--preset's value" in helps[option]
 
 
 def test_fit_help_says_resume_writes_a_finished_fits_outputs():
@@ -250,7 +255,7 @@ def test_the_observed_cells_printed_are_those_concepts_json_counts(small_house, 
     line = next(x for x in capsys.readouterr().out.splitlines() if x.startswith("observed cells"))
     match = re.fullmatch(
         r"observed cells +(\d+) \(where observations were placed\); (\d+) within their 0\.75 m "
-        r"footprints",
+        r"footprints and Voronoi cells within rooms at 1 m doors",  # coarse's since 2026-12-06
         line,
     )
     assert match, line

@@ -15,7 +15,7 @@ def test_the_default_preset_reads_as_names_and_values():
     )
     assert data_line(settings.data) == (
         "data             cells 0.25 m, feature scaling probability, word scaling 10, "
-        "footprint 0.75 m (uniform)"
+        "footprint 0.75 m (uniform), reach share 0.2 (Voronoi cells within rooms at 1 m doors)"
     )
     options = GibbsOptions(merge_moves=0.2, region_moves=0.2)
     assert inference_line("gibbs", options, False, "5000 sweeps", "OUT") == (

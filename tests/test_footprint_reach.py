@@ -179,13 +179,17 @@ def test_a_reach_share_alone_spreads_the_counts_and_the_observed_cells_line_says
 
     data = preset("coarse", footprint_radius=0.0, footprint_reach_share=0.25).data
     assert not data.has_footprint and data.spreads
-    assert not data.replace(footprint_reach_share=0.0).spreads
+    # coarse's door width (since 2026-12-06) goes with its share: DataPreparation.replace sets
+    # only what it is given, and a door width without a share is refused
+    assert not data.replace(footprint_reach_share=0.0, footprint_reach_door_width=None).spreads
     assert footprint_spreads(0.0, 0.0, 0.25) and not footprint_spreads(0.0, 0.0, 0.0)
     assert footprint_spreads(0.5, 0.0, 0.0) and footprint_spreads(0.0, 0.5, 0.0)
     house = model_house(make_house(seed=0, spec=HouseSpec.embedded()), data.cell_size)
     lines = _summary(house, warn=False, preparation=data).splitlines()
     observed = next(x for x in lines if x.startswith("observed cells"))
-    assert observed.endswith(" within their 0 m footprints and Voronoi cells")
+    assert observed.endswith(
+        " within their 0 m footprints and Voronoi cells within rooms at 1 m doors"
+    )
     placed, spread = (int(x.split()[0]) for x in observed.split(maxsplit=2)[2].split("; "))
     assert spread > placed
 

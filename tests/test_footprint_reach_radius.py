@@ -120,8 +120,9 @@ def test_a_reach_radius_without_a_share_is_refused(tmp_path, capsys):
     with pytest.raises(ValueError, match=r"footprint_reach_radius=2\.0: cuts the Voronoi cells"):
         DataPreparation(footprint_reach_radius=2.0)
     DataPreparation(footprint_reach_share=0.25, footprint_reach_radius=2.0)  # with a share: fine
+    # the default preset's share is 0.2 since 2026-12-06: the share of 0 given explicitly
     code = main(["fit", "--sweeps", "3", "--backend", "torch", "--footprint-reach-radius", "2",
-                 "--out", str(tmp_path / "fit")])  # fmt: skip
+                 "--footprint-reach-share", "0", "--out", str(tmp_path / "fit")])  # fmt: skip
     assert code != 0
     assert "footprint_reach_share, which is 0" in capsys.readouterr().err
     assert not (tmp_path / "fit" / "config.json").exists()
@@ -138,8 +139,11 @@ def test_the_cut_is_worded_in_one_place_for_both_summary_lines():
     assert reach_cut_text(None) == "Voronoi cells"
     assert reach_cut_text(2.0) == "Voronoi cells within 2 m"
     data = preset("coarse", footprint_reach_share=0.25, footprint_reach_radius=2.0).data
-    assert "reach share 0.25 (Voronoi cells within 2 m)" in data_line(data)
+    # with coarse's door width (its default since 2026-12-06) after the radius
+    assert "reach share 0.25 (Voronoi cells within 2 m, within rooms at 1 m doors)" in data_line(
+        data
+    )
     house = model_house(make_house(seed=0, spec=HouseSpec.embedded()), data.cell_size)
     lines = _summary(house, warn=False, preparation=data).splitlines()
     observed = next(x for x in lines if x.startswith("observed cells"))
-    assert observed.endswith(" footprints and Voronoi cells within 2 m")
+    assert observed.endswith(" footprints and Voronoi cells within 2 m, within rooms at 1 m doors")

@@ -141,8 +141,9 @@ def test_a_bad_door_width_is_refused_naming_the_field_and_value(bad):
 def test_a_door_width_without_a_share_is_refused(tmp_path, capsys):
     with pytest.raises(ValueError, match=r"footprint_reach_door_width=1\.0: cuts the Voronoi"):
         DataPreparation(footprint_reach_door_width=1.0)
+    # the default preset's share is 0.2 since 2026-12-06: the share of 0 given explicitly
     code = main(["fit", "--sweeps", "3", "--backend", "torch", "--footprint-reach-door-width",
-                 "1", "--out", str(tmp_path / "fit")])  # fmt: skip
+                 "1", "--footprint-reach-share", "0", "--out", str(tmp_path / "fit")])  # fmt: skip
     assert code != 0
     assert "footprint_reach_share, which is 0" in capsys.readouterr().err
     assert not (tmp_path / "fit" / "config.json").exists()

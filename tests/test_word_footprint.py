@@ -109,10 +109,12 @@ def test_a_bad_word_footprint_is_refused(value):
 def test_the_saved_preparation_leaves_it_out_unless_set():
     before = ["feature_scaling", "word_weighting", "snap_distance", "footprint_radius",
               "footprint_kernel", "footprint_fov", "word_scaling", "cell_size"]  # fmt: skip
-    for data in (DataPreparation(), preset("coarse").data, preset("paper-dp").data):
+    reach = ["footprint_reach_share", "footprint_reach_door_width"]  # coarse's since 2026-12-06
+    for data, keys in ((DataPreparation(), before), (preset("coarse").data, before + reach),
+                       (preset("paper-dp").data, before)):  # fmt: skip
         saved = data.to_json()
-        assert sorted(saved) == sorted(before)  # config.json as before the option existed
-        assert saved == {k: v for k, v in dataclasses.asdict(data).items() if k in before}
+        assert sorted(saved) == sorted(keys)  # no word_footprint_radius: as before the option
+        assert saved == {k: v for k, v in dataclasses.asdict(data).items() if k in keys}
         assert DataPreparation(**saved) == data
     words = preset("coarse", word_footprint_radius=0.0).data
     assert words.to_json()["word_footprint_radius"] == 0.0
@@ -293,5 +295,8 @@ def test_the_observed_cells_line_names_the_words_footprint_as_the_data_line(word
     house = model_house(make_house(seed=0, spec=HouseSpec.embedded()), data.cell_size)
     lines = _summary(house, warn=False, preparation=data).splitlines()
     observed = next(x for x in lines if x.startswith("observed cells"))
-    assert observed.endswith(f" within their {expected}")
+    # and coarse's Voronoi cells within rooms after them (its default since 2026-12-06)
+    assert observed.endswith(
+        f" within their {expected} and Voronoi cells within rooms at 1 m doors"
+    )
     assert ("words at cell" in data_line(data)) == (words == 0.0)

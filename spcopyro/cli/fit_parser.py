@@ -262,8 +262,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         default=None,
         metavar="E",
         help="spread a share E in [0, 1) of each observation uniformly over its geodesic "
-        "Voronoi cell among its modality's observed cells, 1 - E over its footprint "
-        "(default 0: off)",
+        "Voronoi cell among its modality's observed cells, 1 - E over its footprint; 0: off, "
+        "and the preset's door width with it (default: the --preset's value: coarse's 0.2, the "
+        "other presets' 0)",
     )
     p.add_argument(
         "--footprint-reach-radius",
@@ -279,7 +280,8 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         default=None,
         metavar="METRES",
         help="draw the Voronoi cells of --footprint-reach-share within the rooms cut at "
-        "doorways up to METRES wide, as the rooms start cuts them (1 m; default: no cut)",
+        "doorways up to METRES wide, as the rooms start cuts them (default: the --preset's "
+        "value: coarse's 1 m, the rooms start's; no cut in the other presets)",
     )
     p.add_argument("--no-figures", action="store_true",
                    help="write no PNG figures (semantic_map, trace, house, uncertainty, "

@@ -50,11 +50,12 @@ images keep their footprint.
 weights and the distinct footprints' counts: :mod:`spcopyro.data.factored_counts`
 (:func:`spread_counts`, :class:`SpreadSources`, :func:`spread_sources`, re-exported here).
 
-**Reaching the Voronoi border** (``DataPreparation.footprint_reach_share`` e, 0 <= e < 1;
-0, the default, is the footprint above exactly). Each observation's weight 1 is split: 1 - e
+**Reaching the Voronoi border** (``DataPreparation.footprint_reach_share`` e, 0 <= e < 1; 0, the
+field's default, is the footprint above exactly; the default preset ``coarse`` takes 0.2, cut at 1 m
+doorways as below, in its first stage since 2026-12-06). Each observation's weight 1 is split: 1 - e
 over its footprint as above, and e spread uniformly over its **geodesic Voronoi cell**, the free
-cells whose nearest observed cell of the same modality (geodesic over the same free-cell graph,
-no distance limit) is its own cell s_t:
+cells whose nearest observed cell of the same modality (geodesic over the same free-cell graph, no
+distance limit) is its own cell s_t:
 
 .. math::
 
@@ -94,14 +95,14 @@ evidence there; the cut keeps it within rho of where it was observed. The Dijkst
 as its ``limit``: every cell on a shortest path to a cell within rho is within rho too, so the
 ties below are found as without it.
 
-**Voronoi cells within rooms** (``DataPreparation.footprint_reach_door_width`` M metres, > 0;
-None, the default: no cut, the cells above exactly). The free cells are cut into room segments
-at doorways up to M wide (:func:`~spcopyro.maps.rooms.room_segments` on the grid the counts are
-on, the model grid in a ``coarse`` fit's first stage: the segmentation of the rooms start and of
-baseline (F), whose M is ``DEFAULT_DOOR_WIDTH`` = 1 m), seg(c) >= 0 the segment of every free
-cell c, and the free-cell graph loses its edges between cells of different segments. The
-distances, nearest sources and ties above are those of that graph: with :math:`d_M` the
-geodesic distance through the free cells of one segment (infinite between segments),
+**Voronoi cells within rooms** (``DataPreparation.footprint_reach_door_width`` M metres, > 0; None,
+the field's default: no cut, the cells above exactly; preset ``coarse``'s is 1 m). The free cells
+are cut into room segments at doorways up to M wide (:func:`~spcopyro.maps.rooms.room_segments` on
+the grid the counts are on, the model grid in a ``coarse`` fit's first stage: the segmentation of
+the rooms start and of baseline (F), whose M is ``DEFAULT_DOOR_WIDTH`` = 1 m), seg(c) >= 0 the
+segment of every free cell c, and the free-cell graph loses its edges between cells of different
+segments. The distances, nearest sources and ties above are those of that graph: with :math:`d_M`
+the geodesic distance through the free cells of one segment (infinite between segments),
 
 .. math::
 

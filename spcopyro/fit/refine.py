@@ -2,7 +2,8 @@ r"""Refining a coarse fit on the map's own cells where the images tell the place
 (issue 21; the numbers in docs/real_houses.md, "Refinement on the map's cells").
 
 The default preset ``coarse`` fits on 0.25 m model cells, counts an image histogram as one
-observation and spreads each utterance over a 0.75 m footprint: right for houses whose images
+observation, spreads each utterance over a 0.75 m footprint and a fifth of each observation's
+weight over its Voronoi cell within its room (cut at 1 m doorways): right for houses whose images
 follow the camera's view rather than the place (the public houses), and the reason its borders
 blur by up to a footprint's radius where the images would have placed them (the dense synthetic
 houses, rooms meeting in wide openings). Whether the images tell places apart needs the places;
@@ -15,16 +16,15 @@ the coarse fit's concepts stand in for them (never a truth):
    drawn per place (measured before any fit was scored).
 2. **Refine** (:func:`refine_chains`): the same model on the map's own cells with preset
    ``auto``'s data preparation -- each histogram as 100 draws (``floor100``), each utterance
-   once at its cell, no footprint (:func:`refined_settings`) -- started from the coarse map
-   refined to the map's cells (:func:`~spcopyro.fit.starts.result_labels`), with the same
-   sampler options (but no ``anneal_sweeps``: annealing is for a start that is not yet a map),
-   sweeps and seeds. After ``--sweeps auto`` (``sweeps="auto"``) the
-   refinement runs as many sweeps as the coarse chains needed to converge, with the point
-   estimate asked for, as a fit of that many sweeps would be refined: its chains all start
-   from the kept coarse one, so an R-hat of theirs would not check what the coarse stage's
-   dispersed starts did, and a single visited state on the map's cells keeps about 1 % of
-   them as one-cell concepts, which the variation-of-information point
-   estimate over the samples does not.
+   once at its cell, no footprint and no reach share (:func:`refined_settings`) -- started from
+   the coarse map refined to the map's cells (:func:`~spcopyro.fit.starts.result_labels`), with
+   the same sampler options (but no ``anneal_sweeps``: annealing is for a start that is not
+   yet a map), sweeps and seeds. After ``--sweeps auto`` (``sweeps="auto"``) the refinement
+   runs as many sweeps as the coarse chains needed to converge, with the point estimate asked
+   for, as a fit of that many sweeps would be refined: its chains all start from the kept
+   coarse one, so an R-hat of theirs would not check what the coarse stage's dispersed starts
+   did, and a single visited state on the map's cells keeps about 1 % of them as one-cell
+   concepts, which the variation-of-information point estimate over the samples does not.
 
 **Why alpha is scaled.** With pi integrated out, the label counts' term of the log joint is the
 Dirichlet-multinomial :math:`\log DM(N_1..N_L \mid \alpha/L)`; a partition of the ``N`` cells
