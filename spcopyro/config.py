@@ -513,8 +513,8 @@ REACH_CUTS: tuple[str, ...] = ("footprint_reach_radius", "footprint_reach_door_w
 """The :class:`DataPreparation` fields that cut the reach share's Voronoi cells, refused where
 the share is 0. A share of 0 given over a preset's (``coarse``'s 0.2: :func:`preset`'s
 overrides, :meth:`SpCoSettings.replace`'s changes) drops the cuts the caller did not choose
-(the preset's 1 m door width): the share is off, and its cuts with it; one the caller chose is
-still refused."""
+(:meth:`SpCoSettings.chose`: the preset's 1 m door width): the share is off, and its cuts
+with it; one the caller chose is still refused."""
 
 
 @dataclass(frozen=True)
@@ -533,8 +533,19 @@ class SpCoSettings:
     preset: str | None = dataclasses.field(default=None, compare=False)
     chosen: frozenset[str] = dataclasses.field(default=frozenset(), compare=False, repr=False)
 
+    def chose(self, field: str) -> bool:
+        """Whether the caller chose the data preparation's ``field``: set it (``chosen``, even
+        to the preset's own value), or its value differs from preset ``preset``'s (every field
+        of settings made without one). The one rule of a share of 0's cuts (:data:`REACH_CUTS`)
+        and of :func:`spcopyro.fit.refine.replaced_preparation`."""
+        if self.preset not in PRESETS or field in self.chosen:
+            return True
+        own = preset(self.preset, num_concepts=self.model.num_concepts).data
+        return getattr(self.data, field) != getattr(own, field)
+
     def replace(self, **changes: object) -> SpCoSettings:
-        """A copy with fields of either layer changed, each routed by its name."""
+        """A copy with fields of either layer changed, each routed by its name; a share of 0
+        drops the cuts of it the caller did not choose (:data:`REACH_CUTS`, :meth:`chose`)."""
         model_fields = {f.name for f in dataclasses.fields(SpCoConfig)}
         data_fields = {f.name for f in dataclasses.fields(DataPreparation)}
         unknown = set(changes) - model_fields - data_fields
@@ -548,7 +559,7 @@ class SpCoSettings:
         data = {k: v for k, v in changes.items() if k in data_fields}
         if "footprint_reach_share" in data and not data["footprint_reach_share"]:
             for cut in REACH_CUTS:  # a cut the caller did not choose goes with the share
-                if cut not in changes and cut not in self.chosen:
+                if cut not in changes and not self.chose(cut):
                     data[cut] = None
         return SpCoSettings(
             self.model.replace(**model) if model else self.model,
@@ -573,18 +584,15 @@ def preset(name: str = DEFAULT_PRESET, **overrides: object) -> SpCoSettings:
         raise ValueError(f"unknown preset {name!r}; choose one of {sorted(PRESETS)}")
     values = dict(PRESETS[name])
     given = {k: v for k, v in overrides.items() if v is not None}
-    values.update(given)
-    if not values.get("footprint_reach_share"):  # a share of 0 given over coarse's 0.2:
-        for cut in REACH_CUTS:  # the preset's cuts of it go with it (a given one is refused)
-            if cut not in given:
-                values.pop(cut, None)
-    if values.get("cell_size") == "map":  # the map's own cells, over a preset's cell size
-        values["cell_size"] = None
     if values.get("num_concepts") is None:
+        values["num_concepts"] = given.get("num_concepts")
+    if values["num_concepts"] is None:
         raise ValueError(
             f"preset {name!r} needs num_concepts (the known number of place categories)"
         )
     data_fields = {f.name for f in dataclasses.fields(DataPreparation)}
     data = {k: values.pop(k) for k in list(values) if k in data_fields}
-    settings = SpCoSettings(model=SpCoConfig(), data=DataPreparation(), preset=name)
-    return dataclasses.replace(settings.replace(**values, **data), chosen=frozenset(given))
+    own = SpCoSettings(SpCoConfig(**values), DataPreparation(**data), preset=name)
+    if given.get("cell_size") == "map":  # the map's own cells, over a preset's cell size
+        given["cell_size"] = None
+    return own.replace(**given)  # chosen: the given; a share of 0 drops the preset's cuts

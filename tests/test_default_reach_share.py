@@ -11,12 +11,13 @@ summary says the cut on its data and observed-cells lines.
 
 from __future__ import annotations
 
+import dataclasses
 import json
 
 import pytest
 
 from spcopyro.cli.main import main
-from spcopyro.config import DEFAULT_PRESET, PRESETS, REACH_CUTS, preset
+from spcopyro.config import DEFAULT_PRESET, PRESETS, DataPreparation, SpCoSettings, preset
 from spcopyro.maps.rooms import DEFAULT_DOOR_WIDTH
 from spcopyro.synthetic import HouseSpec, make_house
 
@@ -43,7 +44,7 @@ def test_a_default_fit_house_records_the_share_and_door_width():
     result = fit_house(house, preset(), sweeps=3, seed=0, progress=False, init="rooms")
     assert result.preparation.footprint_reach_share == 0.2
     assert result.preparation.footprint_reach_door_width == 1.0
-    saved = json.loads(json.dumps(result.preparation.to_json()))
+    saved = result.preparation.to_json()  # as config.json saves it (0 and None left out)
     assert saved["footprint_reach_share"] == 0.2
     assert saved["footprint_reach_door_width"] == 1.0
 
@@ -59,7 +60,6 @@ def test_a_share_of_0_over_the_presets_drops_its_door_width():
     assert replaced.data == off.data
     # a share other than 0 keeps the preset's door width
     assert preset(footprint_reach_share=0.25).data.footprint_reach_door_width == 1.0
-    assert set(REACH_CUTS) == {"footprint_reach_radius", "footprint_reach_door_width"}
 
 
 def test_a_door_width_given_with_a_share_of_0_is_still_refused():
@@ -73,6 +73,24 @@ def test_a_door_width_given_with_a_share_of_0_is_still_refused():
         chosen.replace(footprint_reach_share=0.0)
     with pytest.raises(ValueError, match=r"footprint_reach_radius=2\.0: cuts the Voronoi"):
         preset(footprint_reach_share=0, footprint_reach_radius=2.0)
+
+
+def test_a_door_width_not_the_presets_is_the_callers_though_not_in_chosen():
+    """Chosen is SpCoSettings.chose's rule (refine's warning's too): set by the caller, or
+    differing from the preset's value, or settings made without a preset. Such a door width
+    with a share of 0 is refused, not dropped (it was dropped wherever not in ``chosen``)."""
+    message = r"footprint_reach_door_width=1\.5: cuts the Voronoi cells of footprint_reach_share"
+    made = SpCoSettings(
+        data=DataPreparation(footprint_reach_share=0.2, footprint_reach_door_width=1.5)
+    )
+    with pytest.raises(ValueError, match=message):
+        made.replace(footprint_reach_share=0)
+    data = preset().data.replace(footprint_reach_door_width=1.5)
+    other = dataclasses.replace(preset(), data=data)  # coarse's, chosen empty, 1.5 not 1 m
+    assert other.preset == "coarse" and not other.chosen
+    with pytest.raises(ValueError, match=message):
+        other.replace(footprint_reach_share=0)
+    assert not other.chose("footprint_reach_share") and other.chose("footprint_reach_door_width")
 
 
 def test_the_default_fits_summary_says_the_cut_and_a_share_of_0_turns_it_off(tmp_path, capsys):

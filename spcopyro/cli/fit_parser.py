@@ -263,8 +263,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         metavar="E",
         help="spread a share E in [0, 1) of each observation uniformly over its geodesic "
         "Voronoi cell among its modality's observed cells, 1 - E over its footprint; 0: off, "
-        "and the preset's door width with it (default: the --preset's value: coarse's 0.2, the "
-        "other presets' 0)",
+        f"and the preset's door width with it {_PRESET_DEFAULT}",
     )
     p.add_argument(
         "--footprint-reach-radius",
@@ -280,8 +279,7 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
         default=None,
         metavar="METRES",
         help="draw the Voronoi cells of --footprint-reach-share within the rooms cut at "
-        "doorways up to METRES wide, as the rooms start cuts them (default: the --preset's "
-        "value: coarse's 1 m, the rooms start's; no cut in the other presets)",
+        f"doorways up to METRES wide, as the rooms start cuts them {_PRESET_DEFAULT}",
     )
     p.add_argument("--no-figures", action="store_true",
                    help="write no PNG figures (semantic_map, trace, house, uncertainty, "

@@ -56,7 +56,7 @@ from typing import Any
 import numpy as np
 
 from spcopyro._util.context import set_within
-from spcopyro.config import PRESETS, DataPreparation, SpCoConfig, SpCoSettings, preset
+from spcopyro.config import DataPreparation, SpCoConfig, SpCoSettings
 from spcopyro.data import House
 from spcopyro.data.counts import KEEPS, scale_features, scaled_away
 from spcopyro.data.model_grid import model_house
@@ -159,19 +159,17 @@ def replaced_preparation(
     """The fields of ``settings``' data preparation chosen by its caller that the refinement's
     preparation ``refined`` replaces: field -> ``{"given": settings', "refinement": refined's}``.
     The one rule of both entry points (``spcopyro fit`` names the fields by its options,
-    :func:`spcopyro.cli.fit_refine.replaced_options`). Chosen: set by the caller
-    (``settings.chosen``: :func:`~spcopyro.config.preset`'s overrides, as the command line
-    passes its options, even one equal to the preset's value) or differing from the preset
-    ``settings`` came from (``settings.preset``; every field of settings made without one). A
-    footprint's kernel or field of view counts only where the first stage had a footprint that
-    reads it (any footprint, the words' own too, for the kernel; the images' for the field of
-    view): one given without it did nothing there, and is not replaced; the refinement's is
-    :data:`UNUSED` where it has none. The words' own radius counts only where given (None is
-    ``footprint_radius``'s), against the refinement's words at their cell (0). Empty for a
-    preset's own preparation (the default fit:
-    preset ``coarse``'s is the one the refinement is made to replace)."""
-    name = settings.preset
-    own = preset(name, num_concepts=settings.model.num_concepts).data if name in PRESETS else None
+    :func:`spcopyro.cli.fit_refine.replaced_options`). Chosen
+    (:meth:`~spcopyro.config.SpCoSettings.chose`): set by the caller (``settings.chosen``:
+    :func:`~spcopyro.config.preset`'s overrides, as the command line passes its options, even
+    one equal to the preset's value) or differing from the preset ``settings`` came from
+    (``settings.preset``; every field of settings made without one). A footprint's kernel or
+    field of view counts only where the first stage had a footprint that reads it (any
+    footprint, the words' own too, for the kernel; the images' for the field of view): one given
+    without it did nothing there, and is not replaced; the refinement's is :data:`UNUSED` where
+    it has none. The words' own radius counts only where given (None is ``footprint_radius``'s),
+    against the refinement's words at their cell (0). Empty for a preset's own preparation (the
+    default fit: preset ``coarse``'s is the one the refinement is made to replace)."""
     first = settings.data
     replaced: dict[str, dict[str, object]] = {}
     for field in REPLACED_FIELDS:
@@ -180,7 +178,7 @@ def replaced_preparation(
             if given is None:
                 continue  # the words' radius is footprint_radius's, named under that
             used = refined.words_radius  # the refinement's words: at their cell (its footprint's)
-        if own is not None and field not in settings.chosen and given == getattr(own, field):
+        if not settings.chose(field):
             continue  # the preset's value, not the caller's
         if field in ("footprint_kernel", "footprint_fov"):
             if not first.reads(field):
