@@ -540,8 +540,8 @@ class SpCoSettings:
         and of :func:`spcopyro.fit.refine.replaced_preparation`."""
         if self.preset not in PRESETS or field in self.chosen:
             return True
-        own = preset(self.preset, num_concepts=self.model.num_concepts).data
-        return getattr(self.data, field) != getattr(own, field)
+        own = PRESETS[self.preset].get(field, getattr(DataPreparation(), field))
+        return getattr(self.data, field) != own
 
     def replace(self, **changes: object) -> SpCoSettings:
         """A copy with fields of either layer changed, each routed by its name; a share of 0
