@@ -7,8 +7,8 @@
 Issue 21's study of 2026-12-06 (docs/real_houses.md, "Variants of `coarse` on the held-out
 words"): does a setting of ``coarse`` keep the ARI targets and reach ``paper-dp``'s held-out word
 top-1? For every variant (:data:`VARIANTS`: ``coarse`` with some of its settings changed, with
-``coarse``'s inference settings; ``coarse`` and ``paper-dp`` themselves as references) and fit
-seed, on each public house:
+``coarse``'s inference settings; ``coarse``, ``coarse before the reach share`` and
+``paper-dp`` as references) and fit seed, on each public house:
 
 * the ARI against the region truth of a fit on all three trials
   (:func:`spcopyro.experiments.public_truth.public_truth`), the largest concept's share and the
@@ -43,109 +43,39 @@ PASS or FAIL. ``--kinds``: only those of ``open-plan``, ``sparse``, ``dense`` an
 (default all); a house already in the JSON is skipped, so a later run adds the other kinds, and a
 variant's summary is over every house it has (a kind it has none of shows ``-``).
 
-The reach-share variants (issue 21's open plans, 2026-12-06: ``footprint_reach_share``, a
-share of each observation over its geodesic Voronoi cell) come in three forms: the default's two
-stages with the share in the first (the refinement prepares the data as ``auto`` does, share
-0), the first stage alone (``--refine never``, :data:`real_houses.UNREFINED`), and the share in
-both stages (:data:`STAGE_TWO`: the refinement's settings patched for the variant's fits, a
-screening, not an option of the library). ``reach 0.25 within R m``: the share's Voronoi cells
-cut at R metres from their cell (``footprint_reach_radius``; sparse seed 1's spots reach through
-a doorway into the next room without it), in the first stage. ``reach E in rooms``: the share's
-Voronoi cells drawn within the room segments at ``DEFAULT_DOOR_WIDTH`` (1 m) doors
-(``footprint_reach_door_width``), in the first stage (``, stage two too``: in the refinement as
-well, :data:`STAGE_TWO`).
+The variants and what each means: ``benchmarks/coarse_variant_settings.py`` (its docstring).
+Since 86d6df4 (2026-12-06, 18:20 UTC) ``coarse`` is the default with a reach share of 0.2 in
+rooms; the variants measured before keep their meaning through explicit overrides, and the old
+default's stored results are ``coarse before the reach share`` (2026-12-06, 18:40 UTC).
+
+So that a changed preset cannot silently change what a stored variant means (the resume mixing
+results of two settings under one name), every record begun since 2026-12-06, 18:40 UTC (a
+variant and seed's public results; its ``"synthetic"``) stores its data preparation
+(``"preparation"``: ``coarse_variant_settings.preparation``, every field of the first stage's
+``DataPreparation`` and the variant's stage-two settings), and a run refuses, before fitting,
+a JSON with a record whose stored preparation differs from what the variant now resolves to
+(one line naming the variant, seed, field and both values). Records without one (written
+before) are trusted, as before.
 """
 
 from __future__ import annotations
 
 import argparse
-import contextlib
 import json
 import logging
 import sys
 import time
 from pathlib import Path
-from unittest.mock import patch
 
 import numpy as np
 import real_houses as rh
 from bench_cli import COUNT, INDEX, dataset_root, quick_or, results_path, run_main
+from coarse_variant_settings import BASE, VARIANTS, check_preparations, preparation, variant
 
-from spcopyro.baselines.geometry import DEFAULT_DOOR_WIDTH
 from spcopyro.data import load_house
 from spcopyro.experiments.public_truth import public_truth
 from spcopyro.experiments.table import PUBLIC_CATEGORIES
-from spcopyro.fit import refine
 from spcopyro.results.refined import coarse_stage
-
-BASE = "coarse"
-STAGE_TWO = "stage two"
-"""An override of :data:`VARIANTS` that is no setting: settings the refinement's own
-(:func:`spcopyro.fit.refine.refined_settings`) are replaced with for the variant's fits
-(:func:`variant`)."""
-REACH = "footprint_reach_share"
-REACH_RADIUS = "footprint_reach_radius"
-REACH_DOORS = "footprint_reach_door_width"
-IN_ROOMS = {REACH_DOORS: DEFAULT_DOOR_WIDTH}
-VARIANTS: dict[str, tuple[str, dict[str, object]]] = {
-    "coarse": (BASE, {}),
-    "paper-dp": ("paper-dp", {}),
-    "footprint 0.5 m": (BASE, {"footprint_radius": 0.5}),
-    "gamma 2.5": (BASE, {"gamma": 2.5}),
-    "words x20": (BASE, {"word_scaling": 20.0}),
-    "words x40": (BASE, {"word_scaling": 40.0}),
-    "footprint 0.5 m, words x20": (BASE, {"footprint_radius": 0.5, "word_scaling": 20.0}),
-    "gamma 2.5, footprint 0.5 m": (BASE, {"gamma": 2.5, "footprint_radius": 0.5}),
-    "footprint 0.5 m, gamma 3.5": (BASE, {"footprint_radius": 0.5, "gamma": 3.5}),
-    "footprint 0.75 m": (BASE, {"footprint_radius": 0.75}),
-    "words x15": (BASE, {"word_scaling": 15.0}),
-    "footprint 0.75 m, words x15": (BASE, {"footprint_radius": 0.75, "word_scaling": 15.0}),
-    "footprint 0.75 m, words x20": (BASE, {"footprint_radius": 0.75, "word_scaling": 20.0}),
-    "words x5": (BASE, {"word_scaling": 5.0}),
-    "gamma 3.5": (BASE, {"gamma": 3.5}),
-    "alpha 1e5": (BASE, {"alpha": 1e5}),
-    "words-at-cell": (BASE, {"word_footprint_radius": 0.0}),
-    "coarse, --refine never": (rh.UNREFINED, {}),
-    "reach 0.25": (BASE, {REACH: 0.25}),
-    "reach 0.5": (BASE, {REACH: 0.5}),
-    "reach 0.25, --refine never": (rh.UNREFINED, {REACH: 0.25}),
-    "reach 0.5, --refine never": (rh.UNREFINED, {REACH: 0.5}),
-    "reach 0.25, stage two too": (BASE, {REACH: 0.25, STAGE_TWO: {REACH: 0.25}}),
-    "reach 0.1": (BASE, {REACH: 0.1}),
-    "reach 0.1, --refine never": (rh.UNREFINED, {REACH: 0.1}),
-    "reach 0.2": (BASE, {REACH: 0.2}),
-    "reach 0.25 within 2 m": (BASE, {REACH: 0.25, REACH_RADIUS: 2.0}),
-    "reach 0.25 within 3 m": (BASE, {REACH: 0.25, REACH_RADIUS: 3.0}),
-    "reach 0.25 in rooms": (BASE, {REACH: 0.25, **IN_ROOMS}),
-    "reach 0.2 in rooms": (BASE, {REACH: 0.2, **IN_ROOMS}),
-    "reach 0.25 in rooms, stage two too": (
-        BASE,
-        {REACH: 0.25, **IN_ROOMS, STAGE_TWO: {REACH: 0.25, **IN_ROOMS}},
-    ),
-}
-"""Name -> (preset, overrides), in the order run: ``coarse`` and ``paper-dp`` first (the
-references at the same sweeps), then the variants by the prior that they could raise held-out
-top-1 (finer concepts around where words were said) without losing the places; the reach
-shares last (the open plans' borders)."""
-
-
-@contextlib.contextmanager
-def variant(name: str):
-    """``(preset, overrides)`` of variant ``name`` for fits made within: its :data:`STAGE_TWO`
-    settings, if any, taken out of the overrides and put into every refinement's settings
-    (``refine.refined_settings`` patched, restored on leaving)."""
-    base, overrides = VARIANTS[name]
-    overrides = dict(overrides)
-    stage_two = overrides.pop(STAGE_TWO, None)
-    original = refine.refined_settings
-    patched = (
-        patch.object(refine, "refined_settings",
-                     lambda settings, model_cells, map_cells: original(
-                         settings, model_cells, map_cells).replace(**stage_two))
-        if stage_two else contextlib.nullcontext()
-    )  # fmt: skip
-    with patched:
-        yield base, overrides
 
 
 def public_scores(house, truth: np.ndarray, name: str, sweeps: int, seed: int) -> dict:
@@ -421,6 +351,8 @@ def run_synthetic(args: argparse.Namespace, report: dict, out: Path, public: Pub
             row = report["variants"].setdefault(name, {}).setdefault(f"seed {seed}", {})
             record = row.setdefault("synthetic", {})
             done = record.setdefault("houses", {})
+            if not done:  # a new record: how its fits prepare the data (check_preparations)
+                record["preparation"] = preparation(name)
             if "summary" in record and all(key in done for key in keys):
                 continue
             for key in keys:
@@ -503,6 +435,9 @@ def main(argv: list[str] | None = None) -> int:
     else:
         report |= {"sweeps": args.sweeps, "houses": houses}
     report.setdefault("variants", {})
+    refused = check_preparations(report, out)
+    if refused:
+        parser.error(refused)
     public = PublicHouses(Path(root))  # loaded when first fitted or judged: none on a rerun
     if args.synthetic:
         run_synthetic(args, report, out, public)
@@ -512,6 +447,8 @@ def main(argv: list[str] | None = None) -> int:
             row = report["variants"].setdefault(name, {}).setdefault(f"seed {seed}", {})
             if "summary" in row:
                 continue
+            if not row.get("houses"):  # a new record: how its fits prepare the data
+                row["preparation"] = preparation(name)
             row.setdefault("houses", {})
             for h in houses:
                 if h in row["houses"]:

@@ -1535,7 +1535,7 @@ def test_coarse_variants_fits_held_out_words_with_real_houses_preset_model(scrip
 
     monkeypatch.setattr(rh, "preset_model", preset_model)
     assert cv.heldout_scores(make_house(seed=0), "footprint 0.5 m", 3, 0)["words"] > 0
-    assert calls == [(("coarse", 3, 0), {"footprint_radius": 0.5})]
+    assert calls == [(("coarse", 3, 0), {"footprint_reach_share": 0.0, "footprint_radius": 0.5})]
 
 
 def _stub_coarse_variants(cv, monkeypatch, dataset_root) -> dict[str, list]:
@@ -1619,7 +1619,8 @@ def test_coarse_variants_synthetic_scores_the_houses_not_tuned_on(
     kinds = [("synthetic", 1), ("synthetic", 2), ("synthetic", 1), ("synthetic", 1),
              ("room1dk5", 1)]  # open-plan seeds 0 and 1, sparse, dense; simulate --map  # fmt: skip
     assert calls == [(h, "coarse", 20, seed, {}) for h, seed in kinds] + [
-        (h, "coarse", 20, seed, {"footprint_radius": 0.5}) for h, seed in kinds
+        (h, "coarse", 20, seed, {"footprint_reach_share": 0.0, "footprint_radius": 0.5})
+        for h, seed in kinds
     ]
     results = json.loads(out.read_text())
     houses = ["open-plan seed 0", "open-plan seed 1", "sparse seed 0", "dense seed 0"]
@@ -1733,15 +1734,16 @@ def test_coarse_variants_synthetic_kinds_add_houses_and_stage_two_patches_the_re
 
     from spcopyro.config import preset
     from spcopyro.data import load_house
+    from spcopyro.fit import refine
 
     cv, rh = script("coarse_variants"), script("real_houses")
     _stub_coarse_variants(cv, monkeypatch, dataset_root)
     monkeypatch.setattr(cv, "load_house", load_house)
-    original = cv.refine.refined_settings
+    original = refine.refined_settings
     calls = []
 
     def fit_preset(house, name, sweeps, seed, **overrides):
-        stage_two = cv.refine.refined_settings(preset("coarse", **overrides), 1, 4)
+        stage_two = refine.refined_settings(preset("coarse", **overrides), 1, 4)
         calls.append((name, overrides, stage_two.data.footprint_reach_share))
         return house.truth, 0.0
 
@@ -1754,7 +1756,7 @@ def test_coarse_variants_synthetic_kinds_add_houses_and_stage_two_patches_the_re
     share = {"footprint_reach_share": 0.25}
     assert calls == [("coarse", share, 0.25)] * 2 + [
         (rh.UNREFINED, {"footprint_reach_share": 0.5}, 0.0)] * 2  # fmt: skip
-    assert cv.refine.refined_settings is original
+    assert refine.refined_settings is original
     record = json.loads(out.read_text())["variants"]["reach 0.25, stage two too"]["seed 1"]
     assert list(record["synthetic"]["houses"]) == ["open-plan seed 0", "open-plan seed 1"]
     assert list(record["synthetic"]["summary"]) == ["open-plan", "simulated"]
@@ -1769,3 +1771,133 @@ def test_coarse_variants_synthetic_kinds_add_houses_and_stage_two_patches_the_re
     assert np.isclose(summary["open-plan"]["ari"], 1.0)
     with pytest.raises(SystemExit):
         cv.main(["--quick", "--kinds", "dense", "--out", str(out)])  # only with --synthetic
+
+
+def test_coarse_variants_keep_what_their_stored_results_measured(script):
+    """Since 86d6df4 ``coarse`` carries a reach share of 0.2 in rooms (1 m doors). Every variant
+    measured before it, on ``coarse`` with share 0, resolves (through the script's own
+    ``variant_settings``) to share 0 and no door cut, the reach shares without "in rooms" to
+    their share and radius without a door cut; ``reach 0.2 in rooms`` and ``coarse`` to the
+    current preset's preparation, ``coarse before the reach share`` to share 0. Every variant
+    is listed here: one added must say what it means."""
+    from spcopyro.config import preset
+
+    cvs = script("coarse_variant_settings")
+    now, before = preset("coarse").data, preset("coarse", footprint_reach_share=0.0).data
+    assert (now.footprint_reach_share, now.footprint_reach_door_width) == (0.2, 1.0)
+    current = ["coarse", "coarse, --refine never", "reach 0.2 in rooms"]
+    in_rooms = {"reach 0.25 in rooms": 0.25, "reach 0.25 in rooms, stage two too": 0.25}
+    reach = {"reach 0.25": (0.25, None), "reach 0.5": (0.5, None),
+             "reach 0.25, --refine never": (0.25, None), "reach 0.5, --refine never": (0.5, None),
+             "reach 0.25, stage two too": (0.25, None), "reach 0.1": (0.1, None),
+             "reach 0.1, --refine never": (0.1, None), "reach 0.2": (0.2, None),
+             "reach 0.25 within 2 m": (0.25, 2.0),
+             "reach 0.25 within 3 m": (0.25, 3.0)}  # fmt: skip
+    old = [n for n in cvs.VARIANTS if n not in [*current, *in_rooms, *reach]]
+    assert len(old) == 18 and "coarse before the reach share" in old and "paper-dp" in old
+    for name in old:
+        data = cvs.variant_settings(name).data
+        assert (data.footprint_reach_share, data.footprint_reach_door_width) == (0.0, None), name
+    assert cvs.variant_settings("coarse before the reach share").data == before
+    for name, (share, radius) in reach.items():
+        data = cvs.variant_settings(name).data
+        cut = (data.footprint_reach_share, data.footprint_reach_radius)
+        assert (*cut, data.footprint_reach_door_width) == (share, radius, None), name
+    for name, share in in_rooms.items():
+        data = cvs.variant_settings(name).data
+        assert (data.footprint_reach_share, data.footprint_reach_door_width) == (share, 1.0)
+    for name in current:
+        assert cvs.variant_settings(name).data == now, name
+    assert cvs.variant_settings("reach 0.2 in rooms").model == preset("coarse").model
+
+
+def test_coarse_variants_fit_with_the_settings_they_record(script, monkeypatch):
+    """The settings a variant's fits get (public and held-out, through real_houses.fit_result:
+    fit_house stubbed) are ``variant_settings``' (what its records store): a None override (no
+    door cut) reaches the fit though ``preset`` ignores None; the patches end with the fit."""
+    from spcopyro.synthetic import make_house
+
+    cv, rh = script("coarse_variants"), script("real_houses")
+    cvs = script("coarse_variant_settings")
+    house, resolve, fitted = make_house(seed=0), rh.preset, []
+
+    class Fitted(Exception):
+        pass
+
+    def fit_house(house, settings, **kwargs):
+        fitted.append((settings, kwargs.get("refine")))
+        raise Fitted
+
+    monkeypatch.setattr(rh, "fit_house", fit_house)
+    for name in cvs.VARIANTS:
+        for call in (cv.public_scores, cv.heldout_scores):
+            fitted.clear()
+            with pytest.raises(Fitted):
+                call(house, *([house.truth] if call is cv.public_scores else []), name, 3, 0)
+            settings, refine = fitted[0]
+            want = cvs.variant_settings(name)
+            assert (settings.data, settings.model) == (want.data, want.model), name
+            assert refine == "never" or not name.endswith("--refine never"), name
+            assert rh.preset is resolve
+    recorded = cvs.preparation("reach 0.25, stage two too")
+    assert recorded["footprint_reach_door_width"] is None and recorded["stage two"] == {
+        "footprint_reach_share": 0.25}  # fmt: skip
+
+
+def test_coarse_variants_refuse_to_resume_a_record_prepared_otherwise(
+    script, monkeypatch, dataset_root, tmp_path, capsys
+):
+    """Each new record stores its data preparation; a resume refuses, before fitting, a record
+    whose stored preparation differs from what the variant now resolves to (here: the variant
+    defined as before 86d6df4's default changed, which then silently inherited the reach
+    share), naming the variant, seed, field and both values. A record without one (older) is
+    trusted."""
+    from spcopyro.data import load_house
+
+    cv, rh = script("coarse_variants"), script("real_houses")
+    cvs = script("coarse_variant_settings")
+    _stub_coarse_variants(cv, monkeypatch, dataset_root)
+    out = tmp_path / "cv.json"
+    assert cv.main(["--quick", "--out", str(out)]) == 0
+    monkeypatch.setattr(cv, "load_house", load_house)
+    monkeypatch.setattr(rh, "fit_preset", lambda house, *_, **__: (house.truth, 0.0))
+    argv = ["--quick", "--synthetic", "--kinds", "dense", "--out", str(out)]
+    assert cv.main(argv) == 0
+    report = json.loads(out.read_text())
+    for name, seeds in report["variants"].items():
+        row = seeds["seed 0"]
+        assert row["preparation"] == row["synthetic"]["preparation"] == cvs.preparation(name)
+    assert report["variants"]["coarse"]["seed 0"]["preparation"]["footprint_reach_share"] == 0.2
+    first = out.read_text()
+    capsys.readouterr()
+    fits = []
+    monkeypatch.setattr(cv, "public_scores", lambda *args: fits.append(args))
+    monkeypatch.setattr(rh, "fit_preset", lambda *args, **kwargs: fits.append(args))
+    changed = {**cvs.VARIANTS, "footprint 0.5 m": ("coarse", {"footprint_radius": 0.5})}
+    monkeypatch.setattr(cvs, "VARIANTS", changed)  # as it was: now with the reach share
+    for run in (["--quick", "--variants", "coarse", "--out", str(out)], argv):
+        with pytest.raises(SystemExit) as refused:
+            cv.main(run)
+        assert refused.value.code == 2
+        message = capsys.readouterr().err.strip().splitlines()[-1]
+        assert message.endswith(
+            f"error: {out}: 'footprint 0.5 m' seed 0's public results were fitted with "
+            "footprint_reach_share = 0.0, the variant now resolves to 0.2; give another --out, "
+            "or rename the variant's entry in the JSON to what it measured"
+        )
+    assert fits == [] and out.read_text() == first
+    for row in report["variants"]["footprint 0.5 m"].values():  # an older JSON: none recorded
+        del row["preparation"], row["synthetic"]["preparation"]
+    out.write_text(json.dumps(report, indent=1))
+    assert cv.main(argv) == 0 and fits == []  # trusted, as before; nothing refitted
+    synthetic = report["variants"]["coarse"]["seed 0"]["synthetic"]
+    synthetic["preparation"]["footprint_reach_door_width"] = None
+    out.write_text(json.dumps(report, indent=1))
+    with pytest.raises(SystemExit):
+        cv.main(argv)
+    message = capsys.readouterr().err.strip().splitlines()[-1]
+    assert (
+        "'coarse' seed 0's synthetic results were fitted with footprint_reach_door_width = "
+        "None, the variant now resolves to 1.0;" in message
+    )
+    assert fits == []
