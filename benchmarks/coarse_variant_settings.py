@@ -36,7 +36,7 @@ from unittest.mock import patch
 import real_houses as rh
 
 from spcopyro.baselines.geometry import DEFAULT_DOOR_WIDTH
-from spcopyro.config import DEFAULT_PRESET, SpCoSettings
+from spcopyro.config import SpCoSettings
 from spcopyro.fit import refine
 
 BASE = "coarse"
@@ -52,7 +52,8 @@ BEFORE = {REACH: 0.0}
 """The overrides that give ``coarse`` before 86d6df4 (2026-12-06, 18:20 UTC): share 0, which
 drops the preset's 1 m door width (:func:`spcopyro.config.preset`'s share-0 rule)."""
 UNCUT = {REACH_DOORS: None}
-"""The door cut off under a share (None: :func:`variant` sets it over the preset's 1 m)."""
+"""The door cut off under a share (None: ``real_houses.settings_of`` sets it over the preset's
+1 m)."""
 VARIANTS: dict[str, tuple[str, dict[str, object]]] = {
     "coarse before the reach share": (BASE, BEFORE),
     "coarse": (BASE, {}),
@@ -109,30 +110,29 @@ UTC each variant measured on the old ``coarse`` says so in its overrides (:data:
 def variant(name: str):
     """``(preset, overrides)`` of variant ``name`` for fits made within: its :data:`STAGE_TWO`
     settings, if any, taken out of the overrides and put into every refinement's settings
-    (``refine.refined_settings`` patched, restored on leaving); an override of None
-    (:data:`UNCUT`), which :func:`~spcopyro.config.preset` ignores, set over the preset's value
-    (``real_houses``' ``preset`` patched the same way)."""
+    (``refine.refined_settings`` patched, restored on leaving). An override of None
+    (:data:`UNCUT`) stays in the overrides: ``real_houses.settings_of`` sets it over the
+    preset's value."""
     base, overrides = VARIANTS[name]
     stage_two = overrides.get(STAGE_TWO)
-    unset = {k: v for k, v in overrides.items() if v is None}
-    overrides = {k: v for k, v in overrides.items() if k != STAGE_TWO and k not in unset}
-    original, resolve = refine.refined_settings, rh.preset
-    with contextlib.ExitStack() as stack:
-        if stage_two:
-            stack.enter_context(patch.object(
-                refine, "refined_settings", lambda settings, model_cells, map_cells: original(
-                    settings, model_cells, map_cells).replace(**stage_two)))  # fmt: skip
-        if unset:
-            stack.enter_context(patch.object(
-                rh, "preset", lambda base, **o: resolve(base, **o).replace(**unset)))  # fmt: skip
+    overrides = {k: v for k, v in overrides.items() if k != STAGE_TWO}
+    original = refine.refined_settings
+    patched = (
+        patch.object(refine, "refined_settings",
+                     lambda settings, model_cells, map_cells: original(
+                         settings, model_cells, map_cells).replace(**stage_two))
+        if stage_two else contextlib.nullcontext()
+    )  # fmt: skip
+    with patched:
         yield base, overrides
 
 
 def variant_settings(name: str) -> SpCoSettings:
     """The first stage's settings of variant ``name``'s fits, resolved as ``real_houses``'
-    ``fit_result`` resolves them (``preset(PRESET, **overrides)``, :func:`variant`'s)."""
+    ``fit_result`` resolves them (``real_houses.settings_of``, of :func:`variant`'s preset and
+    overrides)."""
     with variant(name) as (base, overrides):
-        return rh.preset(DEFAULT_PRESET if base == rh.UNREFINED else base, **overrides)
+        return rh.settings_of(base, **overrides)
 
 
 def preparation(name: str) -> dict[str, object]:

@@ -59,7 +59,7 @@ from bench_cli import COUNT, INDEX, dataset_root, quick_or, results_path, run_ma
 
 from spcopyro.baselines.geometry import geometry_semantic_map
 from spcopyro.baselines.nearest import nearest_word_map
-from spcopyro.config import DEFAULT_PRESET, preset
+from spcopyro.config import DEFAULT_PRESET, SpCoSettings, preset
 from spcopyro.data import load_house
 from spcopyro.experiments.ablation import concepts_over, largest_share
 from spcopyro.experiments.open_plan import observation_oracle
@@ -103,21 +103,30 @@ every observation's own region, each border half-way between the places' observa
 METHODS = ("cavi", "lbp", "svi", "stochastic-vi", "vi-gibbs")
 
 
+def settings_of(name: str, **overrides: object) -> SpCoSettings:
+    """The settings :func:`fit_result` fits preset ``name`` with (:data:`UNREFINED`: the default
+    preset's; its ``refine="never"`` is :func:`fit_result`'s): ``preset(name, **overrides)``,
+    and an override of None, which ``preset`` ignores, set over the preset's value."""
+    unset = {k: v for k, v in overrides.items() if v is None}
+    settings = preset(DEFAULT_PRESET if name == UNREFINED else name, **overrides)
+    return settings.replace(**unset) if unset else settings
+
+
 def fit_result(
     house, name: str, sweeps: int, seed: int, method: str = "gibbs", **overrides: object
 ):
     """The preset's default fit (its recommended inference settings for Gibbs; a variational
     method with its default options) and its seconds. :data:`UNREFINED`: the default preset's
     fit without its refinement on the map's cells (``--refine never``). ``overrides``: settings
-    replacing the preset's (``preset(name, **overrides)``: a variant of it)."""
+    replacing the preset's (:func:`settings_of`: a variant of it)."""
     unrefined = name == UNREFINED
     name = DEFAULT_PRESET if unrefined else name
     kwargs = preset_fit_kwargs(name) if method == "gibbs" else {}  # else fit_house's defaults
     if unrefined:
         kwargs["refine"] = "never"
     start = time.perf_counter()
-    result = fit_house(house, preset(name, **overrides), method=method, sweeps=sweeps, seed=seed,
-                       progress=False, **kwargs)  # fmt: skip
+    result = fit_house(house, settings_of(name, **overrides), method=method, sweeps=sweeps,
+                       seed=seed, progress=False, **kwargs)  # fmt: skip
     return result, time.perf_counter() - start
 
 
@@ -249,8 +258,7 @@ def heldout_top1(
     }
     models["E nearest", None] = lambda train: nearest_word_map(train.grid, train.observations)
     models["F geometry 2 m", None] = lambda train: geometry_semantic_map(
-        train.grid, train.observations, door_width=2.0
-    )
+        train.grid, train.observations, door_width=2.0)  # fmt: skip
     folds = heldout_fold_scores(house, models)
     out: dict[str, dict] = {}
     for name in presets:
@@ -427,11 +435,8 @@ def table(title: str, per_house: dict[str, dict[str, dict]], expected: dict | No
         mean = np.mean([per_house[h][method]["ari"] for h in houses])
         lines.append(f"| {method} | " + " | ".join(cells) + f" | {mean:.3f} |")
     if expected:
-        lines.append(
-            "| paper Table 2 categories | "
-            + " | ".join(str(expected.get(h, "")) for h in houses)
-            + " | |"
-        )
+        lines.append("| paper Table 2 categories | "
+                     + " | ".join(str(expected.get(h, "")) for h in houses) + " | |")  # fmt: skip
     lines += [
         "",
         "Cells: ARI (share of the largest concept, concepts holding >= 1 % of the cells).",
@@ -514,43 +519,35 @@ def main(argv: list[str] | None = None) -> int:
         "from house to house: three seeds judged chain luck; default 10, --quick: 1)",
     )  # fmt: skip
     parser.add_argument(
-        "--out",
-        default=None,
+        "--out", default=None,
         help="JSON output (default benchmarks/real_houses.json, "
         "real_houses_quick.json with --quick)",
-    )
+    )  # fmt: skip
     parser.add_argument("--no-synthetic", action="store_true")
     parser.add_argument(
-        "--method-iterations",
-        type=COUNT,
+        "--method-iterations", type=COUNT,
         help="iterations of each variational method (and vi-gibbs' sweeps; default 200, "
         "--quick: 5)",
-    )
+    )  # fmt: skip
     parser.add_argument(
-        "--fit-seeds",
-        type=INDEX,
-        nargs="+",
+        "--fit-seeds", type=INDEX, nargs="+",
         help="fit seeds of the default fit on each simulated public map (a row each, and the "
         "mean; default 0 1 2, --quick: 0)",
-    )
+    )  # fmt: skip
     parser.add_argument(
-        "--heldout-seeds",
-        type=INDEX,
-        nargs="+",
+        "--heldout-seeds", type=INDEX, nargs="+",
         help="fit seeds of every preset on every held-out fold (their mean, and a row each): "
         "one seed is 45 fits, about 6 min on an idle core, 15-20 min on a busy 2-core machine; "
         "default 0 1 2, --quick: 0",
-    )
+    )  # fmt: skip
     parser.add_argument(
-        "--no-extras",
-        action="store_true",
+        "--no-extras", action="store_true",
         help="only the ARI tables (no held-out words, methods, simulation, 4x)",
-    )
+    )  # fmt: skip
     parser.add_argument(
-        "--quick",
-        action="store_true",
+        "--quick", action="store_true",
         help="a smoke run: 60 sweeps, one public house, one seed, 5 iterations",
-    )
+    )  # fmt: skip
     args = parser.parse_args(argv)
     args.out = results_path(args.out, "real_houses", args.quick)
     houses = dict(PUBLIC_CATEGORIES)

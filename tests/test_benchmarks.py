@@ -1732,7 +1732,6 @@ def test_coarse_variants_synthetic_kinds_add_houses_and_stage_two_patches_the_re
     (refine.refined_settings patched while it fits, restored after)."""
     import numpy as np
 
-    from spcopyro.config import preset
     from spcopyro.data import load_house
     from spcopyro.fit import refine
 
@@ -1743,7 +1742,7 @@ def test_coarse_variants_synthetic_kinds_add_houses_and_stage_two_patches_the_re
     calls = []
 
     def fit_preset(house, name, sweeps, seed, **overrides):
-        stage_two = refine.refined_settings(preset("coarse", **overrides), 1, 4)
+        stage_two = refine.refined_settings(rh.settings_of("coarse", **overrides), 1, 4)
         calls.append((name, overrides, stage_two.data.footprint_reach_share))
         return house.truth, 0.0
 
@@ -1753,9 +1752,9 @@ def test_coarse_variants_synthetic_kinds_add_houses_and_stage_two_patches_the_re
     argv = ["--quick", "--synthetic", "--open-plan-seeds", "2", "--seeds", "1", *variants,
             "--out", str(out)]  # fmt: skip
     assert cv.main([*argv, "--kinds", "open-plan"]) == 0
-    share = {"footprint_reach_share": 0.25}
-    assert calls == [("coarse", share, 0.25)] * 2 + [
-        (rh.UNREFINED, {"footprint_reach_share": 0.5}, 0.0)] * 2  # fmt: skip
+    uncut = {"footprint_reach_door_width": None}  # UNCUT: set by real_houses.settings_of
+    assert calls == [("coarse", {"footprint_reach_share": 0.25, **uncut}, 0.25)] * 2 + [
+        (rh.UNREFINED, {"footprint_reach_share": 0.5, **uncut}, 0.0)] * 2  # fmt: skip
     assert refine.refined_settings is original
     record = json.loads(out.read_text())["variants"]["reach 0.25, stage two too"]["seed 1"]
     assert list(record["synthetic"]["houses"]) == ["open-plan seed 0", "open-plan seed 1"]
@@ -1813,13 +1812,15 @@ def test_coarse_variants_keep_what_their_stored_results_measured(script):
 
 def test_coarse_variants_fit_with_the_settings_they_record(script, monkeypatch):
     """The settings a variant's fits get (public and held-out, through real_houses.fit_result:
-    fit_house stubbed) are ``variant_settings``' (what its records store): a None override (no
-    door cut) reaches the fit though ``preset`` ignores None; the patches end with the fit."""
+    fit_house stubbed) are ``variant_settings``' (what its records store), and a None override
+    (:data:`UNCUT`: no door cut) reaches the fit though ``preset`` ignores None: the reach
+    shares without "in rooms" are fitted with no door width, literally (fails where fit_result
+    builds its settings with ``preset`` alone, dropping the None)."""
     from spcopyro.synthetic import make_house
 
     cv, rh = script("coarse_variants"), script("real_houses")
     cvs = script("coarse_variant_settings")
-    house, resolve, fitted = make_house(seed=0), rh.preset, []
+    house, fitted, doors = make_house(seed=0), [], {}
 
     class Fitted(Exception):
         pass
@@ -1838,7 +1839,12 @@ def test_coarse_variants_fit_with_the_settings_they_record(script, monkeypatch):
             want = cvs.variant_settings(name)
             assert (settings.data, settings.model) == (want.data, want.model), name
             assert refine == "never" or not name.endswith("--refine never"), name
-            assert rh.preset is resolve
+            doors[name] = (settings.data.footprint_reach_share,
+                           settings.data.footprint_reach_door_width)  # fmt: skip
+    assert doors["coarse"] == doors["coarse, --refine never"] == (0.2, 1.0)
+    assert doors["reach 0.25"] == doors["reach 0.25, stage two too"] == (0.25, None)
+    assert doors["reach 0.5, --refine never"] == (0.5, None)
+    assert doors["reach 0.2"] == (0.2, None) and doors["reach 0.25 in rooms"] == (0.25, 1.0)
     recorded = cvs.preparation("reach 0.25, stage two too")
     assert recorded["footprint_reach_door_width"] is None and recorded["stage two"] == {
         "footprint_reach_share": 0.25}  # fmt: skip
