@@ -300,3 +300,28 @@ def test_a_patch_of_with_sample_marginals_reaches_an_update(house, saved, monkey
     monkeypatch.setattr(gibbs_chains, "with_sample_marginals", counted)
     fit_update(saved, house, SETTINGS, sweeps=5, progress=False)
     assert calls == [1]
+
+
+def test_an_update_of_a_fit_without_the_reach_share_names_the_flag(tmp_path, house, capsys):
+    """A default fit saved before preset coarse's reach share (share 0, no door width), updated
+    under the default: the refusal names ``--footprint-reach-share 0``, which updates it; a
+    share given on the command line gets no hint (cli.fit_update.reach_share_hint)."""
+    save_house(house, tmp_path / "all")
+    data = str(tmp_path / "all" / "synthetic")
+    first, again = tmp_path / "first", tmp_path / "again"
+    flags = ["--sweeps", "5", "--refine", "never", "--no-figures"]
+    assert main(["fit", data, "--out", str(first), "--footprint-reach-share", "0", *flags]) == 0
+    assert "footprint_reach_share" not in json.loads((first / "config.json").read_text())["data"]
+    capsys.readouterr()
+    hint = "pass --footprint-reach-share 0 to update it as it was fitted"
+    assert main(["fit", data, "--out", str(again), "--update", str(first), *flags]) == 2
+    err = capsys.readouterr().err
+    assert "footprint_reach_share: saved fit 0.0, this run 0.2" in err and hint in err
+    assert not again.exists()
+    given = ["--footprint-reach-share", "0.3", *flags]
+    assert main(["fit", data, "--out", str(again), "--update", str(first), *given]) == 2
+    err = capsys.readouterr().err
+    assert "footprint_reach_share: saved fit 0.0, this run 0.3" in err and hint not in err
+    off = ["--footprint-reach-share", "0", *flags]
+    assert main(["fit", data, "--out", str(again), "--update", str(first), *off]) == 0
+    assert SpCoResult.load(again).preparation.footprint_reach_share == 0

@@ -56,7 +56,12 @@ from spcopyro.cli.fit_settings import (
     word_weighting_note,
 )
 from spcopyro.cli.fit_summary import data_line, inference_line, model_line
-from spcopyro.cli.fit_update import relative_records, report_update, update_settings
+from spcopyro.cli.fit_update import (
+    reach_share_hint,
+    relative_records,
+    report_update,
+    update_settings,
+)
 from spcopyro.cli.fit_warnings import recorded_warnings
 from spcopyro.cli.fit_write import Fitted, write_outputs
 from spcopyro.config import preset_inference
@@ -330,12 +335,19 @@ def _fit(
             from spcopyro.robot.online import fit_update
 
             chains = _chain_count(args)
-            chain_results = fit_update(
-                saved, house, settings, method=args.method, options=options, sweeps=args.sweeps,
-                seeds=[args.seed + k for k in range(chains)], source=source, threads=args.threads,
-                marginal_samples=args.marginal_samples, point_estimate=args.point_estimate,
-                where=args.update,
-            )  # fmt: skip
+            try:
+                chain_results = fit_update(
+                    saved, house, settings, method=args.method, options=options,
+                    sweeps=args.sweeps, seeds=[args.seed + k for k in range(chains)],
+                    source=source, threads=args.threads,
+                    marginal_samples=args.marginal_samples,
+                    point_estimate=args.point_estimate, where=args.update,
+                )  # fmt: skip
+            except ValueError as error:  # check_compatible's refusal: the flag that mends it
+                hint = reach_share_hint(args, saved, settings)
+                if hint and str(error).startswith(f"cannot update {args.update} with this run"):
+                    raise ValueError(f"{error}{hint}") from error
+                raise
             this_data = chain_results[0].provenance.get("source", {})  # to tell unchanged data
             this_sha = this_data.get("data_sha256") if isinstance(this_data, dict) else None
             relative_records(chain_results, job.staged.out)  # update_of.fit: relative to OUT

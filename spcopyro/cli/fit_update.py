@@ -1,6 +1,7 @@
 """``spcopyro fit --update``'s own lines: its settings after a refined fit
-(:func:`update_settings`), the lines it prints (:func:`report_update`) and its record of the
-saved fit relative to OUT (:func:`relative_records`)."""
+(:func:`update_settings`), the lines it prints (:func:`report_update`), its record of the
+saved fit relative to OUT (:func:`relative_records`) and the hint its refusal of a fit saved
+before the reach share became the default gets (:func:`reach_share_hint`)."""
 
 from __future__ import annotations
 
@@ -19,7 +20,7 @@ if TYPE_CHECKING:
     from spcopyro.config import SpCoSettings
     from spcopyro.results.result import SpCoResult
 
-__all__ = ["relative_records", "report_update", "update_settings"]
+__all__ = ["reach_share_hint", "relative_records", "report_update", "update_settings"]
 
 
 def relative_records(results: Sequence[SpCoResult], out: Path) -> None:
@@ -59,6 +60,23 @@ def update_settings(
     if not record.get("refine") or prepares_data(args):
         return settings
     return refined_settings(settings, int(record["coarse"]["free_cells"]), map_cells)
+
+
+def reach_share_hint(args: argparse.Namespace, saved: SpCoResult, settings: SpCoSettings) -> str:
+    """What to add to the refusal (:func:`spcopyro.robot.online.check_compatible`) of an update
+    of ``saved``, a fit without the reach share (``footprint_reach_share`` 0, as preset
+    ``coarse`` fitted before 2026-12-06), under ``settings`` whose share comes from the preset,
+    ``--footprint-reach-share`` not given: that the flag at 0 updates it as it was fitted.
+    Empty otherwise (the user chose the share, the saved fit has one, or this run has none)."""
+    if args.footprint_reach_share is not None or saved.preparation.footprint_reach_share:
+        return ""
+    if not settings.data.footprint_reach_share:
+        return ""
+    return (
+        f"; the fit in {args.update} has no reach share (footprint_reach_share 0, preset "
+        f"coarse's default before 2026-12-06) and this run's is --preset {args.preset}'s: pass "
+        "--footprint-reach-share 0 to update it as it was fitted"
+    )
 
 
 def report_update(record: dict[str, object], where: str, data_sha256: object = None) -> None:
