@@ -150,8 +150,8 @@ def rooms_initial_labels(
     width = DEFAULT_DOOR_WIDTH if door_width is None else door_width
     room = torch.as_tensor(free_cell_rooms(house.grid, width), dtype=torch.long)  # [N] >= 0
     L = config.num_concepts
-    random = torch.randint(L, (len(room),), generator=generator)  # [N] the stream, unused
-    return torch.where(room >= 0, room % L, random)
+    torch.randint(L, (len(room),), generator=generator)  # [N] drawn for the stream alone
+    return room % L
 
 
 def initial_labels(
