@@ -22,7 +22,8 @@ cut at R metres from their cell (``footprint_reach_radius``; sparse seed 1's spo
 a doorway into the next room without it), in the first stage. ``reach E in rooms``: the share's
 Voronoi cells drawn within the room segments at ``DEFAULT_DOOR_WIDTH`` (1 m) doors
 (``footprint_reach_door_width``), in the first stage (``, stage two too``: in the refinement as
-well, :data:`STAGE_TWO`); ``reach 0.2 in rooms`` is the current ``coarse``.
+well, :data:`STAGE_TWO`); ``reach 0.2 in rooms`` is the current ``coarse`` (``reach 0.2 in rooms,
+stage two too``: the current ``coarse`` with its share kept in the refinement).
 """
 
 from __future__ import annotations
@@ -96,6 +97,10 @@ VARIANTS: dict[str, tuple[str, dict[str, object]]] = {
     "reach 0.25 in rooms, stage two too": (
         BASE,
         {REACH: 0.25, **IN_ROOMS, STAGE_TWO: {REACH: 0.25, **IN_ROOMS}},
+    ),
+    "reach 0.2 in rooms, stage two too": (
+        BASE,
+        {REACH: 0.2, **IN_ROOMS, STAGE_TWO: {REACH: 0.2, **IN_ROOMS}},
     ),
 }
 """Name -> (preset, overrides), in the order run: the references at the same sweeps first

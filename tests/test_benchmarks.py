@@ -1785,7 +1785,8 @@ def test_coarse_variants_keep_what_their_stored_results_measured(script):
     now, before = preset("coarse").data, preset("coarse", footprint_reach_share=0.0).data
     assert (now.footprint_reach_share, now.footprint_reach_door_width) == (0.2, 1.0)
     current = ["coarse", "coarse, --refine never", "reach 0.2 in rooms"]
-    in_rooms = {"reach 0.25 in rooms": 0.25, "reach 0.25 in rooms, stage two too": 0.25}
+    in_rooms = {"reach 0.25 in rooms": 0.25, "reach 0.25 in rooms, stage two too": 0.25,
+                "reach 0.2 in rooms, stage two too": 0.2}  # fmt: skip
     reach = {"reach 0.25": (0.25, None), "reach 0.5": (0.5, None),
              "reach 0.25, --refine never": (0.25, None), "reach 0.5, --refine never": (0.5, None),
              "reach 0.25, stage two too": (0.25, None), "reach 0.1": (0.1, None),
@@ -1808,6 +1809,8 @@ def test_coarse_variants_keep_what_their_stored_results_measured(script):
     for name in current:
         assert cvs.variant_settings(name).data == now, name
     assert cvs.variant_settings("reach 0.2 in rooms").model == preset("coarse").model
+    assert cvs.preparation("reach 0.2 in rooms, stage two too")["stage two"] == {
+        "footprint_reach_share": 0.2, "footprint_reach_door_width": 1.0}  # fmt: skip
 
 
 def test_coarse_variants_fit_with_the_settings_they_record(script, monkeypatch):
