@@ -255,8 +255,7 @@ def test_baselines_and_metrics_do_not_import_inference(part):
 
 
 LOOSE_MODULES = (
-    "__init__", "__main__", "config", "distributions", "likelihood", "model", "model_checks",
-    "simulate",
+    "__init__", "__main__", "distributions", "likelihood", "model", "model_checks", "simulate",
 )  # fmt: skip
 """The only modules at the top of ``spcopyro/``: the model core. Everything else is in a folder."""
 
