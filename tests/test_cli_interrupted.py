@@ -6,6 +6,7 @@ from __future__ import annotations
 import pytest
 
 from spcopyro.cli import main as main_module
+from spcopyro.cli import simulate as simulate_module
 from spcopyro.cli.interrupted import interrupted_line
 from spcopyro.cli.main import build_parser, main
 
@@ -60,7 +61,7 @@ def test_ctrl_c_in_simulate_names_it_and_its_folder(tmp_path, monkeypatch, capsy
     def interrupted(args):
         raise KeyboardInterrupt
 
-    monkeypatch.setattr(main_module, "_simulate", interrupted)
+    monkeypatch.setattr(simulate_module, "_simulate", interrupted)
     assert main(["simulate", "--out", str(tmp_path / "h")]) == 130
     house = tmp_path / "h" / "synthetic"
     assert capsys.readouterr().err == (
@@ -89,12 +90,12 @@ def test_where_and_show_name_the_files_they_write():
     (:mod:`spcopyro.cli.out_names`), not a copy of it in interrupted.py."""
     from pathlib import Path
 
-    from spcopyro.cli import interrupted, main, navigate
+    from spcopyro.cli import interrupted, main, navigate, simulate
     from spcopyro.cli.interrupted import _figures
     from spcopyro.cli.out_names import graph_json, probability_figure
 
     assert interrupted.probability_figure is main.probability_figure is probability_figure
-    assert interrupted.house_name is main.house_name  # simulate's OUT/NAME, also defined once
+    assert interrupted.house_name is simulate.house_name  # simulate's OUT/NAME, defined once
     assert interrupted.graph_json is navigate.graph_json is graph_json
     for out in ("w.png", "d/w", "w.jpg"):
         args = build_parser().parse_args(["where", "R", "kitchen", "--out", out])
@@ -198,7 +199,7 @@ def test_a_second_ctrl_c_as_the_line_is_said_ends_as_cleanly(tmp_path, monkeypat
         os.kill(os.getpid(), signal.SIGINT)
         return said(args)
 
-    monkeypatch.setattr(main_module, "_simulate", interrupted)
+    monkeypatch.setattr(simulate_module, "_simulate", interrupted)
     monkeypatch.setattr(main_module, "interrupted_line", second_ctrl_c)
     try:
         code = main(["simulate", "--out", str(tmp_path / "h")])
@@ -240,7 +241,7 @@ def test_a_second_ctrl_c_before_the_line_is_guarded_ends_as_cleanly(
             raise KeyboardInterrupt
         return None
 
-    monkeypatch.setattr(main_module, "_simulate", stopped)
+    monkeypatch.setattr(simulate_module, "_simulate", stopped)
     previous = sys.gettrace()
     sys.settrace(tracer)
     try:
