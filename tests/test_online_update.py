@@ -7,6 +7,7 @@ from __future__ import annotations
 import dataclasses
 import json
 import logging
+import pickle
 
 import numpy as np
 import pytest
@@ -19,6 +20,7 @@ from spcopyro.fit.house import fit_house
 from spcopyro.guides.options import VariationalOptions
 from spcopyro.results.result import SpCoResult
 from spcopyro.robot.online import (
+    UpdateMismatch,
     check_compatible,
     extend_emission,
     fit_update,
@@ -235,6 +237,25 @@ def test_other_settings_map_or_image_classes_are_clear_errors(house, saved):
                                          rf"Ft.csv {classes + 1}"):  # fmt: skip
         start_update(saved, dataclasses.replace(house, observations=wider), SETTINGS)
     check_compatible(saved, house, SETTINGS)  # the same house and settings: no error
+
+
+def test_the_refusal_of_an_update_is_a_value_error_of_its_own_type(house, saved):
+    """check_compatible's refusal is an UpdateMismatch, a ValueError (as it was), carrying each
+    difference as the message names them, whole through pickle (a worker's error): fit
+    --update's hint (cli/fit.py) tells it by its type, no longer by the message's opening words
+    (the hint itself: test_an_update_of_a_fit_without_the_reach_share_names_the_flag)."""
+    with pytest.raises(UpdateMismatch) as caught:
+        check_compatible(saved, house, SETTINGS.replace(gamma=4.0, beta=0.2), where="OLD")
+    error = caught.value
+    assert isinstance(error, ValueError)
+    assert error.problems == (
+        "beta: saved fit 0.1, this run 0.2",
+        "gamma: saved fit 3.0, this run 4.0",
+    )
+    assert str(error).startswith("cannot update OLD with this run: " + "; ".join(error.problems))
+    again = pickle.loads(pickle.dumps(error))
+    assert type(again) is UpdateMismatch
+    assert (str(again), again.problems) == (str(error), error.problems)
 
 
 def test_fit_update_command_end_to_end(tmp_path, house, capsys):

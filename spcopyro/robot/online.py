@@ -91,6 +91,7 @@ from spcopyro.robot.update_history import UPDATE_INIT, update_record
 __all__ = [
     "DEFAULT_UPDATE_SWEEPS",
     "SavedVocabulary",
+    "UpdateMismatch",
     "UpdateStart",
     "VocabularyMerge",
     "check_compatible",
@@ -187,13 +188,28 @@ def _differences(saved: dict[str, object], new: dict[str, object]) -> list[str]:
     ]
 
 
+class UpdateMismatch(ValueError):
+    """:func:`check_compatible`'s refusal: this run may not continue the saved fit. A
+    ValueError (what it raised before it had a type of its own); ``problems``: each difference,
+    as the message names them, so that a caller (``spcopyro fit --update``'s hint of the flag
+    that mends it) tells the refusal by its type, not by its message's words."""
+
+    def __init__(self, message: str, problems: Sequence[str] = ()) -> None:
+        super().__init__(message)
+        self.problems: tuple[str, ...] = tuple(problems)
+
+    def __reduce__(self) -> tuple[type[UpdateMismatch], tuple[str, tuple[str, ...]]]:
+        return type(self), (str(self), self.problems)  # pickled (a worker's error) whole
+
+
 def check_compatible(
     saved: SpCoResult, house: House, settings: SpCoSettings, where: str = "the saved fit"
 ) -> None:
-    """ValueError, naming every difference, unless ``house`` and ``settings`` may continue
-    ``saved``: the same map (shape, resolution, origin, free cells), the same model
-    hyperparameters and data preparation, the same number of image classes and the same
-    modalities with the same items. ``where`` names the saved fit in the message (its folder)."""
+    """:class:`UpdateMismatch` (a ValueError), naming every difference, unless ``house`` and
+    ``settings`` may continue ``saved``: the same map (shape, resolution, origin, free cells),
+    the same model hyperparameters and data preparation, the same number of image classes and
+    the same modalities with the same items. ``where`` names the saved fit in the message (its
+    folder)."""
     problems = []
     old, grid = saved.grid, house.grid
     if old.shape != grid.shape:
@@ -241,7 +257,8 @@ def check_compatible(
             if refined
             else " (an update needs the saved fit's map and settings: see its config.json)"
         )
-        raise ValueError(f"cannot update {where} with this run: " + "; ".join(problems) + hint)
+        message = f"cannot update {where} with this run: " + "; ".join(problems) + hint
+        raise UpdateMismatch(message, problems)
 
 
 def extend_emission(
