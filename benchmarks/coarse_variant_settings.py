@@ -142,7 +142,7 @@ def variant_settings(name: str) -> SpCoSettings:
 
 def preparation(name: str) -> dict[str, object]:
     """What a record of variant ``name`` stores of how its fits prepared the data: every field
-    of :func:`variant_settings`' :class:`~spcopyro.config.DataPreparation`, and its
+    of :func:`variant_settings`' :class:`~spcopyro.config.preparation.DataPreparation`, and its
     :data:`STAGE_TWO` settings (``"stage two"``) where it has them, as JSON values."""
     prepared = dataclasses.asdict(variant_settings(name).data)
     stage_two = VARIANTS[name][1].get(STAGE_TWO)

@@ -20,7 +20,7 @@ from spcopyro.fit.house import fit_house
 from spcopyro.guides.options import VariationalOptions
 from spcopyro.results.result import SpCoResult
 from spcopyro.robot.online import (
-    UpdateMismatch,
+    UpdateMismatchError,
     check_compatible,
     extend_emission,
     fit_update,
@@ -240,11 +240,12 @@ def test_other_settings_map_or_image_classes_are_clear_errors(house, saved):
 
 
 def test_the_refusal_of_an_update_is_a_value_error_of_its_own_type(house, saved):
-    """check_compatible's refusal is an UpdateMismatch, a ValueError (as it was), carrying each
-    difference as the message names them, whole through pickle (a worker's error): fit
+    """check_compatible's refusal is an UpdateMismatchError, a ValueError (as it was), carrying each
+    difference as the message names them, whole through pickle with a note added (what
+    gibbs.chain_processes adds to an error before pickling it): fit
     --update's hint (cli/fit.py) tells it by its type, no longer by the message's opening words
     (the hint itself: test_an_update_of_a_fit_without_the_reach_share_names_the_flag)."""
-    with pytest.raises(UpdateMismatch) as caught:
+    with pytest.raises(UpdateMismatchError) as caught:
         check_compatible(saved, house, SETTINGS.replace(gamma=4.0, beta=0.2), where="OLD")
     error = caught.value
     assert isinstance(error, ValueError)
@@ -253,9 +254,11 @@ def test_the_refusal_of_an_update_is_a_value_error_of_its_own_type(house, saved)
         "gamma: saved fit 3.0, this run 4.0",
     )
     assert str(error).startswith("cannot update OLD with this run: " + "; ".join(error.problems))
+    error.add_note("raised in a worker")
     again = pickle.loads(pickle.dumps(error))
-    assert type(again) is UpdateMismatch
+    assert type(again) is UpdateMismatchError
     assert (str(again), again.problems) == (str(error), error.problems)
+    assert again.__notes__ == ["raised in a worker"]
 
 
 def test_fit_update_command_end_to_end(tmp_path, house, capsys):

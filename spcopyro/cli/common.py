@@ -176,9 +176,9 @@ def _summary(
     preparation: DataPreparation | None = None,
 ) -> str:
     """The house's summary lines; ``warn=False`` when the fit will count (and warn) again,
-    ``preparation`` the run's (None: :class:`~spcopyro.config.DataPreparation`'s defaults):
-    the observations are counted under its feature scaling (so a bad count is told under the
-    scaling it has there) and placed with its snap distance, as the fit places them (the
+    ``preparation`` the run's (None: :class:`~spcopyro.config.preparation.DataPreparation`'s
+    defaults): the observations are counted under its feature scaling (so a bad count is told under
+    the scaling it has there) and placed with its snap distance, as the fit places them (the
     placement line counted them at the default 0.25 m whatever the fit's ``--snap-distance``),
     and with a footprint radius, the cells the footprints reach (the fit's observed cells, as
     ``concepts.json`` counts them) are given beside the cells where observations were

@@ -332,7 +332,7 @@ def _fit(
             estimate = preset_inference(args.preset).get("point_estimate", "map-visited")
             estimate = estimate if args.marginal_samples > 0 else "map-visited"
         elif saved is not None:
-            from spcopyro.robot.online import UpdateMismatch, fit_update
+            from spcopyro.robot.online import UpdateMismatchError, fit_update
 
             chains = _chain_count(args)
             try:
@@ -343,10 +343,10 @@ def _fit(
                     marginal_samples=args.marginal_samples,
                     point_estimate=args.point_estimate, where=args.update,
                 )  # fmt: skip
-            except UpdateMismatch as error:  # check_compatible's refusal: the flag that mends it
+            except UpdateMismatchError as error:  # check_compatible's refusal: the flag mending it
                 hint = reach_share_hint(args, saved, settings)
                 if hint:
-                    raise UpdateMismatch(f"{error}{hint}", error.problems) from error
+                    raise UpdateMismatchError(f"{error}{hint}", error.problems) from error
                 raise
             this_data = chain_results[0].provenance.get("source", {})  # to tell unchanged data
             this_sha = this_data.get("data_sha256") if isinstance(this_data, dict) else None

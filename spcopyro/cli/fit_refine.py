@@ -97,8 +97,8 @@ def check_refinable(
 
 
 _FLAGS = {"footprint_radius": "--footprint", "word_footprint_radius": "--word-footprint"}
-"""The :class:`~spcopyro.config.DataPreparation` fields whose option of :data:`REFINED_AWAY` is
-not ``--`` and the field's name in dashes."""
+"""The :class:`~spcopyro.config.preparation.DataPreparation` fields whose option of
+:data:`REFINED_AWAY` is not ``--`` and the field's name in dashes."""
 
 
 def replaced_options(

@@ -19,7 +19,8 @@ from pathlib import Path
 import numpy as np
 
 from spcopyro._util.messages import setting
-from spcopyro.config import IMAGES, WORDS, FeatureScaling, is_number
+from spcopyro._util.number_checks import is_number
+from spcopyro.config import IMAGES, WORDS, FeatureScaling
 from spcopyro.data.observations import DataFormatError, Observations
 from spcopyro.data.placement import PlacementReport, on_map_text
 from spcopyro.maps.grid import OccupancyGrid

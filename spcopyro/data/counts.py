@@ -137,8 +137,8 @@ def cell_counts(
                         = sum over utterances d in m of tfidf(., d)     word_weighting="tfidf"
         modalities[j].counts[m] = sum over observations o of modality j in m of counts_o
 
-    (``"auto"``, the default of a fit's :class:`~spcopyro.config.DataPreparation`: tf-idf when
-    at least 30% of the utterances of ``obs`` have more than one token, else counts,
+    (``"auto"``, the default of a fit's :class:`~spcopyro.config.preparation.DataPreparation`:
+    tf-idf when at least 30% of the utterances of ``obs`` have more than one token, else counts,
     :mod:`spcopyro.data.word_weighting`. This function counts unless told otherwise.)
 
     Further modalities are placed exactly like images (same snapping) and summed as they are
@@ -294,8 +294,8 @@ def prepared_cell_counts(
     source: str | os.PathLike[str] | None = None,
     warn: bool = True,
 ) -> CellCounts:
-    """:func:`cell_counts` under a :class:`~spcopyro.config.DataPreparation` (its feature
-    scaling, word weighting and scaling, snap distance and footprint): the counts a fit with
+    """:func:`cell_counts` under a :class:`~spcopyro.config.preparation.DataPreparation` (its
+    feature scaling, word weighting and scaling, snap distance and footprint): the counts a fit with
     that preparation reads (its model grid is ``grid``; ``cell_size`` is applied to the map
     before, not here)."""
     return cell_counts(

@@ -27,8 +27,8 @@ data term of cell c is :math:`\tilde x_c \cdot \log\phi_{C_c}` with the weighted
 constant in every label and parameter (the multinomial coefficients), the same density, so
 every full conditional (eq. 13), every Dirichlet posterior (eqs. 14-17: its counts are the
 weighted sums :math:`\sum_{c: C_c = l} \tilde x_c`), and every variational update is that of the
-tempered model. This is why the footprint is a :class:`~spcopyro.config.DataPreparation` switch
-(how observations become per-cell counts): the Pyro model, both Gibbs backends, CAVI and the
+tempered model. This is why the footprint is a :class:`~spcopyro.config.preparation.DataPreparation`
+switch (how observations become per-cell counts): the Pyro model, both Gibbs backends, CAVI and the
 likelihood read the same weighted counts with no change of their code.
 
 **Reach.** Distances are geodesic over free cells, so a footprint never crosses a wall: a
@@ -148,7 +148,7 @@ from typing import TYPE_CHECKING, Literal, TypeVar
 import numpy as np
 
 from spcopyro._util.context import set_within
-from spcopyro.config import is_number
+from spcopyro._util.number_checks import is_number
 from spcopyro.data.factored_counts import SpreadSources, spread_counts, spread_sources
 from spcopyro.maps.grid import OccupancyGrid
 

@@ -5,8 +5,8 @@ ablation (:mod:`spcopyro.experiments.ablation`, issue #14 "Evidence required"):
 
 * ``preset``: a name of :data:`spcopyro.config.PRESETS` (the starting values);
 * ``settings``: fields of :class:`~spcopyro.config.SpCoConfig` or
-  :class:`~spcopyro.config.DataPreparation` (``gamma``, ``beta``, ``use_words``, a footprint
-  radius once the model has one, ...), applied with :func:`spcopyro.config.preset`;
+  :class:`~spcopyro.config.preparation.DataPreparation` (``gamma``, ``beta``, ``use_words``, a
+  footprint radius once the model has one, ...), applied with :func:`spcopyro.config.preset`;
 * ``options``: fields of the inference method's options (:class:`~spcopyro.gibbs.GibbsOptions`
   for Gibbs), nested ones by a dotted path (``hyper.alpha``), as ``fit --method-option`` sets
   them (:func:`spcopyro.inference.protocol.with_options`);

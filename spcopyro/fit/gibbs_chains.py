@@ -149,8 +149,9 @@ def preparation_record(settings: SpCoSettings) -> dict[str, object]:
     are read, so checkpoints made before they existed still resume and a resume changing one
     that does nothing is not refused: ``footprint_radius`` and ``footprint_kernel`` where any
     footprint is on (the words' own too), ``footprint_fov`` where the images' is
-    (:meth:`~spcopyro.config.DataPreparation.reads`), ``word_footprint_radius`` where it differs
-    from ``footprint_radius`` (equal, it changes nothing: ``--word-footprint 0 --footprint 0``)."""
+    (:meth:`~spcopyro.config.preparation.DataPreparation.reads`), ``word_footprint_radius`` where it
+    differs from ``footprint_radius`` (equal, it changes nothing: ``--word-footprint 0
+    --footprint 0``)."""
     data = settings.data
     record = data.to_json()  # word_footprint_radius only where set
     if data.words_radius == data.footprint_radius:  # set to footprint_radius's: no change

@@ -144,8 +144,8 @@ def refined_settings(settings: SpCoSettings, model_cells: int, map_cells: int) -
 REPLACED_FIELDS = ("feature_scaling", "word_scaling", "footprint_radius", "footprint_kernel",
                    "footprint_fov", "word_footprint_radius", "footprint_reach_share",
                    "footprint_reach_radius", "footprint_reach_door_width")  # fmt: skip
-"""The :class:`~spcopyro.config.DataPreparation` fields :func:`refined_settings` sets a value of
-its own for (the cell size too, but the refinement is on the map's cells by definition)."""
+"""The :class:`~spcopyro.config.preparation.DataPreparation` fields :func:`refined_settings` sets a
+value of its own for (the cell size too, but the refinement is on the map's cells by definition)."""
 
 
 UNUSED = "unused (no footprint)"

@@ -100,9 +100,9 @@ def config_warnings(config: SpCoConfig, sampled: bool = True) -> list[str]:
 def preparation_warnings(data: DataPreparation) -> list[str]:
     """Warnings for data preparation settings that do nothing (empty if none): a footprint
     kernel other than the default ``"uniform"`` without any footprint
-    (:attr:`~spcopyro.config.DataPreparation.has_footprint`: the words' own reads it too), or a
-    field of view with ``footprint_radius`` 0 (it applies to images only, words always using
-    the disc), where the observations it would weight count in their own cell only and it is
+    (:attr:`~spcopyro.config.preparation.DataPreparation.has_footprint`: the words' own reads it
+    too), or a field of view with ``footprint_radius`` 0 (it applies to images only, words always
+    using the disc), where the observations it would weight count in their own cell only and it is
     not read (the fit's counts are as if it were not given)."""
     given = []
     if data.footprint_kernel != "uniform" and not data.reads("footprint_kernel"):

@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from spcopyro._util.messages import echo, shown_bytes
-from spcopyro.config import is_number
+from spcopyro._util.number_checks import is_number
 
 if TYPE_CHECKING:
     from collections.abc import Callable

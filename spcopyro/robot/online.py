@@ -91,7 +91,7 @@ from spcopyro.robot.update_history import UPDATE_INIT, update_record
 __all__ = [
     "DEFAULT_UPDATE_SWEEPS",
     "SavedVocabulary",
-    "UpdateMismatch",
+    "UpdateMismatchError",
     "UpdateStart",
     "VocabularyMerge",
     "check_compatible",
@@ -188,7 +188,7 @@ def _differences(saved: dict[str, object], new: dict[str, object]) -> list[str]:
     ]
 
 
-class UpdateMismatch(ValueError):
+class UpdateMismatchError(ValueError):
     """:func:`check_compatible`'s refusal: this run may not continue the saved fit. A
     ValueError (what it raised before it had a type of its own); ``problems``: each difference,
     as the message names them, so that a caller (``spcopyro fit --update``'s hint of the flag
@@ -198,14 +198,11 @@ class UpdateMismatch(ValueError):
         super().__init__(message)
         self.problems: tuple[str, ...] = tuple(problems)
 
-    def __reduce__(self) -> tuple[type[UpdateMismatch], tuple[str, tuple[str, ...]]]:
-        return type(self), (str(self), self.problems)  # pickled (a worker's error) whole
-
 
 def check_compatible(
     saved: SpCoResult, house: House, settings: SpCoSettings, where: str = "the saved fit"
 ) -> None:
-    """:class:`UpdateMismatch` (a ValueError), naming every difference, unless ``house`` and
+    """:class:`UpdateMismatchError` (a ValueError), naming every difference, unless ``house`` and
     ``settings`` may continue ``saved``: the same map (shape, resolution, origin, free cells),
     the same model hyperparameters and data preparation, the same number of image classes and
     the same modalities with the same items. ``where`` names the saved fit in the message (its
@@ -258,7 +255,7 @@ def check_compatible(
             else " (an update needs the saved fit's map and settings: see its config.json)"
         )
         message = f"cannot update {where} with this run: " + "; ".join(problems) + hint
-        raise UpdateMismatch(message, problems)
+        raise UpdateMismatchError(message, problems)
 
 
 def extend_emission(

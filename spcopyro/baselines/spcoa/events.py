@@ -18,7 +18,8 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial import cKDTree
 
-from spcopyro.config import WordWeightingSetting, is_number
+from spcopyro._util.number_checks import is_number
+from spcopyro.config import WordWeightingSetting
 from spcopyro.data import (
     FeatureScaling,
     Observations,
