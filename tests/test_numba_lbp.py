@@ -167,6 +167,45 @@ def test_the_active_set_stops_the_passes_at_a_fixed_point():
     assert float((bp.beliefs() - settled).abs().max()) < 1e-7
 
 
+def excesses(bp) -> np.ndarray:
+    """[N * D, L] every stored message's excess rho, dense (0 outside its entries)."""
+    E, K = bp.idx.shape
+    dense = np.zeros((E, bp.config.num_concepts))
+    live = np.arange(K)[None, :] < bp.cnt[:, None]  # [E, K]
+    dense[np.nonzero(live)[0], bp.idx[live]] = bp.val[live]
+    return dense
+
+
+@needs_numba
+@pytest.mark.parametrize("damping", [0.0, 0.5])
+@pytest.mark.parametrize("support", [0, 3])
+def test_each_message_records_how_far_it_moved(damping, support):
+    """One pass's ``moved`` of every message against its definition applied to the stored
+    excesses before and after: half the log range over l of (1 + rho_new) / (1 + rho_old), the
+    range taken with 1 in it (0 for a skipped sender, whose message stays), on each of the
+    pass's paths: undamped and damped, with a cap (support 3: the top-K cut after damping) and
+    without; and the logs stored with the message, log(1 + rho)."""
+    data, cfg = small_house()
+    options = LBPOptions(backend="numba", damping=damping, passes=1, support=support,
+                         threshold=1e-3, active_tolerance=1e-2)  # fmt: skip
+    state, _, _ = iterate(data, cfg, options, 3)
+    bp = state.bp
+    for _ in range(20):  # the same globals until the active set skips a cell (1-10 passes)
+        bp.run(state.factors, cfg.gamma)
+        if bp.sent_cells < data.num_free:
+            break
+    before = excesses(bp)
+    bp.run(state.factors, cfg.gamma)
+    after = excesses(bp)
+    change = np.log1p(after) - np.log1p(before)  # [E, L]
+    expected = 0.5 * (np.maximum(change.max(1), 0.0) - np.minimum(change.min(1), 0.0))
+    live = (data.neighbours >= 0).numpy().reshape(-1)  # [E] the messages that exist
+    assert 0 < bp.sent_cells < data.num_free  # some cells sent, some were skipped
+    np.testing.assert_allclose(bp.moved[live], expected[live], rtol=1e-9, atol=1e-12)
+    live_entries = np.arange(bp.idx.shape[1])[None, :] < bp.cnt[:, None]
+    np.testing.assert_allclose(bp.lg[live_entries], np.log1p(bp.val[live_entries]), rtol=1e-14)
+
+
 def test_backend_selection():
     data, cfg = PROBLEMS["grid4"]()
     assert resolve_lbp_backend(LBPOptions(backend="torch"), data, cfg) == "torch"

@@ -157,7 +157,11 @@ def _refresh(
     excesses and the observed rows; the dense part is sum_e epoch_invz[e] beta_e, summed by the
     caller), ``totals [3]`` as ``_summaries``'. The current base row M is epoch ``epoch``.
     ``incident [N, D]`` the pair of each slot (-1: none); ``pair_a, pair_b [P]``, ``pair_slots
-    [P, 2]`` b's slot in a's row and a's in b's."""
+    [P, 2]`` b's slot in a's row and a's in b's.
+
+    A cell whose gather the b side still holds (the last pair's other end: on a grid, the next
+    cell of its row) takes it over (the two sides' scratch swap roles) instead of gathering again:
+    the messages do not change during the refresh."""
     N, D = nb.shape
     L = beta.shape[1]
     M = beta.shape[0] - 1
@@ -169,16 +173,25 @@ def _refresh(
     tset_a, tset_b = tsets[0], tsets[1]
     ulist = np.empty(2 * L, np.int64)
     refreshed = 0
+    cell_a, cell_b, sa, sb, na, nbb = -1, -1, 0, 0, 0, 0  # whose gather each side holds (-1: none)
     for a in range(N):
         if not 2.0 * drift[a] > tolerance:
             continue
         refreshed += 1
         drift[a] = 0.0
         ra = rows[a]
-        sa = tick
-        tick += 1
-        na = _gather(a, idx, val, lg, cnt, nb, sa, mark_a, prod_a, logprod_a, tset_a, fmark_a,
-                     fac_a, flog_a)  # fmt: skip
+        if a == cell_b:  # gathered as the last pair's other end (the messages are unchanged)
+            mark_a, mark_b, fmark_a, fmark_b = mark_b, mark_a, fmark_b, fmark_a
+            prod_a, prod_b, logprod_a, logprod_b = prod_b, prod_a, logprod_b, logprod_a
+            fac_a, fac_b, flog_a, flog_b = fac_b, fac_a, flog_b, flog_a
+            tset_a, tset_b = tset_b, tset_a
+            cell_a, cell_b, sa, sb, na, nbb = a, cell_a, sb, sa, nbb, na
+        else:
+            sa = tick
+            tick += 1
+            na = _gather(a, idx, val, lg, cnt, nb, sa, mark_a, prod_a, logprod_a, tset_a,
+                         fmark_a, fac_a, flog_a)  # fmt: skip
+            cell_a = a
         z = bsum[ra]
         for t in range(na):
             l = tset_a[t]
@@ -243,6 +256,7 @@ def _refresh(
             tick += 1
             nbb = _gather(b, idx, val, lg, cnt, nb, sb, mark_b, prod_b, logprod_b, tset_b,
                           fmark_b, fac_b, flog_b)  # fmt: skip
+            cell_b = b
             db = pair_slots[p, 1] if pair_a[p] == a else pair_slots[p, 0]
             agreement, entropy = _pair_terms(
                 ra, rb, d, db, beta, logbeta, bsum, row_entropy, b2, a2, gamma,

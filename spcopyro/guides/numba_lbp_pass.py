@@ -4,6 +4,15 @@ whose docstring states the math). Private to that module.
 Every helper is written out in the loop: a call with array arguments costs an atomic
 increment and decrement of each array's reference count (numba's runtime), which took a third
 of the pass when the gather, the top-K selection and the change measure were functions.
+
+A sent cell's work, once each: the cavity's X(l) on T per message (kept for its candidates), the
+concepts outside T per cell (the same for its D messages; listed as far as a message's scan
+needs), and per message one loop over the undamped entries and one over the old ones giving the
+damped message with both its change ranges (``residual``, ``moved``); the old message is read in
+place and overwritten last. Only where the top-K cut drops entries after damping are the ranges
+measured again over what is kept. The arithmetic is that of the earlier layout operation for
+operation (its messages, ``moved`` and ``residual`` equal bit for bit, checked on 324 option
+combinations on 2026-12-06).
 """
 
 from __future__ import annotations
@@ -63,12 +72,13 @@ def _message_pass(
     M = beta.shape[0] - 1
     s = np.expm1(gamma)
     tset = np.empty(L, np.int64)
-    top_l = np.empty(L + 2 * K, np.int64)  # the candidates, then the kept ones in front
+    tbeta = np.empty(L)  # beta[r, tset[t]]
+    xs = np.empty(L)  # the cavity's X(tset[t]) of the message being built
+    outl = np.empty(L, np.int64)  # the concepts outside T in scan order, found so far
+    top_l = np.empty(L + 2 * K, np.int64)  # the undamped candidates, the kept ones in front
     top_w = np.empty(L + 2 * K)
-    und_l = np.empty(K, np.int64)
-    und_w = np.empty(K)
-    old_l = np.empty(K, np.int64)
-    old_w = np.empty(K)
+    new_l = np.empty(L + 2 * K, np.int64)  # the damped message's entries
+    new_w = np.empty(L + 2 * K)
     tick = max(mark.max(), omark.max(), fmark.max()) + 1
     sent = 0
     for p in range(N):
@@ -105,6 +115,10 @@ def _message_pass(
                     prod[l] *= f
                 fmark[d, l] = stamp
                 fac[d, l] = f
+        for t in range(nt):
+            tbeta[t] = beta[r, tset[t]]
+        nout = 0  # outl[:nout]: the concepts outside T met so far by the scan (the same for all d)
+        scan = 0  # the scan's next position (border's for row M, else concept order)
         worst = 0.0
         for d in range(D):
             j = nb[i, d]
@@ -115,29 +129,39 @@ def _message_pass(
             for t in range(nt):
                 l = tset[t]
                 x = prod[l] / fac[d, l] if fmark[d, l] == stamp else prod[l]
-                z += beta[r, l] * (x - 1.0)
+                xs[t] = x
+                z += tbeta[t] * (x - 1.0)
             scale = s / z  # rho_new(l) = (e^gamma - 1) b_{i \ j}(l)
             nc = 0
             for t in range(nt):
-                l = tset[t]
-                x = prod[l] / fac[d, l] if fmark[d, l] == stamp else prod[l]
-                w = scale * beta[r, l] * x
+                w = scale * tbeta[t] * xs[t]
+                if w >= threshold and w > 0.0:
+                    top_l[nc] = tset[t]
+                    top_w[nc] = w
+                    nc += 1
+            taken = 0
+            q = 0
+            while True:  # the concepts outside T, by descending beta (row M)
+                if q == nout:  # extend the list by the scan's next concept outside T
+                    while scan < L:
+                        l = border[scan] if r == M else scan
+                        scan += 1
+                        if mark[l] != stamp:
+                            outl[nout] = l
+                            nout += 1
+                            break
+                    if q == nout:
+                        break
+                l = outl[q]
+                q += 1
+                w = scale * beta[r, l]
+                if r == M and (w < threshold or w <= 0.0 or taken == K):
+                    break  # descending order: every later one is smaller
                 if w >= threshold and w > 0.0:
                     top_l[nc] = l
                     top_w[nc] = w
                     nc += 1
-            taken = 0
-            for o in range(L):  # the concepts outside T, by descending beta
-                l = border[o] if r == M else o
-                if mark[l] != stamp:
-                    w = scale * beta[r, l]
-                    if r == M and (w < threshold or w <= 0.0 or taken == K):
-                        break  # descending order: every later one is smaller
-                    if w >= threshold and w > 0.0:
-                        top_l[nc] = l
-                        top_w[nc] = w
-                        nc += 1
-                        taken += 1
+                    taken += 1
             n = nc
             if nc > K:  # keep the K largest: partial selection sort
                 for k in range(K):
@@ -150,93 +174,118 @@ def _message_pass(
                 n = K
             e = j * D + rev[i, d]
             ce = cnt[e]
-            for k in range(ce):
-                old_l[k] = idx[e, k]
-                old_w[k] = val[e, k]
+            # moved: half the log range of (1 + rho_new) / (1 + rho_old) over the concepts of
+            # either; residual: of (1 + rho_stored) / (1 + rho_undamped). The old message is
+            # read from idx, val (overwritten last); mlo < 0: moved still to be measured
+            mlo, mhi = -1.0, -1.0
             if damping > 0.0:  # m = (1 - d) m_new + d m_old = a (1 + rho) (module docstring)
-                n_und = n
+                ostamp = tick  # the old excess, scattered
+                tick += 2
+                for k in range(ce):
+                    omark[idx[e, k]] = ostamp
+                    oval[idx[e, k]] = val[e, k]
+                mlo, mhi = 1.0, 1.0  # both ranges measured in one loop over each excess
                 total = 0.0
                 for k in range(n):
-                    und_l[k] = top_l[k]
-                    und_w[k] = top_w[k]
                     total += top_w[k]
                 wa, wb = (1.0 - damping) / (L + total), damping / (L + msum[e])
                 a = wa + wb
-                ostamp = tick
-                tick += 2
-                for k in range(ce):  # the old excess, scattered
-                    omark[old_l[k]] = ostamp
-                    oval[old_l[k]] = old_w[k]
-                nc = 0
-                for k in range(n):
-                    l = und_l[k]
-                    old = oval[l] if omark[l] == ostamp else 0.0
-                    w = (wa * und_w[k] + wb * old) / a
+                rlo, rhi = 1.0, 1.0
+                nn = 0
+                for k in range(n):  # the undamped entries, with the old one where there is one
+                    l = top_l[k]
+                    u = top_w[k]
+                    had = omark[l] == ostamp
+                    old = oval[l] if had else 0.0
+                    w = (wa * u + wb * old) / a
                     omark[l] = ostamp + 1
                     if w >= threshold and w > 0.0:
-                        top_l[nc] = l
-                        top_w[nc] = w
-                        nc += 1
+                        new_l[nn] = l
+                        new_w[nn] = w
+                        nn += 1
+                        ratio = (1.0 + w) / (1.0 + u)
+                        rlo, rhi = min(rlo, ratio), max(rhi, ratio)
+                        ratio = (1.0 + w) / (1.0 + old)
+                        mlo, mhi = min(mlo, ratio), max(mhi, ratio)
+                    else:
+                        ratio = 1.0 / (1.0 + u)
+                        rlo, rhi = min(rlo, ratio), max(rhi, ratio)
+                        if had:
+                            ratio = 1.0 / (1.0 + old)
+                            mlo, mhi = min(mlo, ratio), max(mhi, ratio)
                 for k in range(ce):
-                    l = old_l[k]
+                    l = idx[e, k]
                     if omark[l] == ostamp:  # in the old excess only
-                        w = wb * old_w[k] / a
+                        old = val[e, k]
+                        w = wb * old / a
                         if w >= threshold and w > 0.0:
-                            top_l[nc] = l
-                            top_w[nc] = w
-                            nc += 1
-                n = nc
-                if nc > K:
+                            new_l[nn] = l
+                            new_w[nn] = w
+                            nn += 1
+                            ratio = 1.0 + w  # over 1 + rho_undamped = 1
+                            rlo, rhi = min(rlo, ratio), max(rhi, ratio)
+                            ratio = (1.0 + w) / (1.0 + old)
+                            mlo, mhi = min(mlo, ratio), max(mhi, ratio)
+                        else:
+                            ratio = 1.0 / (1.0 + old)
+                            mlo, mhi = min(mlo, ratio), max(mhi, ratio)
+                if nn > K:  # keep the K largest; the ranges over what is kept, recomputed
                     for k in range(K):
                         best = k
-                        for c in range(k + 1, nc):
-                            if top_w[c] > top_w[best]:
+                        for c in range(k + 1, nn):
+                            if new_w[c] > new_w[best]:
                                 best = c
-                        top_l[k], top_l[best] = top_l[best], top_l[k]
-                        top_w[k], top_w[best] = top_w[best], top_w[k]
-                    n = K
-                # residual: half the log range of (1 + rho_stored) / (1 + rho_undamped)
-                ustamp = tick
-                tick += 2
-                for k in range(n_und):
-                    omark[und_l[k]] = ustamp
-                    oval[und_l[k]] = und_w[k]
-                lo, hi = 1.0, 1.0
+                        new_l[k], new_l[best] = new_l[best], new_l[k]
+                        new_w[k], new_w[best] = new_w[best], new_w[k]
+                    nn = K
+                    ustamp = tick
+                    tick += 2
+                    for k in range(n):
+                        omark[top_l[k]] = ustamp
+                        oval[top_l[k]] = top_w[k]
+                    rlo, rhi = 1.0, 1.0
+                    for k in range(nn):
+                        l = new_l[k]
+                        u = oval[l] if omark[l] == ustamp else 0.0
+                        ratio = (1.0 + new_w[k]) / (1.0 + u)
+                        rlo, rhi = min(rlo, ratio), max(rhi, ratio)
+                        omark[l] = ustamp + 1
+                    for k in range(n):
+                        if omark[top_l[k]] == ustamp:  # in the undamped excess only
+                            ratio = 1.0 / (1.0 + top_w[k])
+                            rlo, rhi = min(rlo, ratio), max(rhi, ratio)
+                    mlo, mhi = -1.0, -1.0  # over what is kept: measured below
+                worst = max(worst, 0.5 * np.log(rhi / rlo))
+                n = nn
+            else:
                 for k in range(n):
-                    l = top_l[k]
-                    u = oval[l] if omark[l] == ustamp else 0.0
-                    ratio = (1.0 + top_w[k]) / (1.0 + u)
-                    lo, hi = min(lo, ratio), max(hi, ratio)
-                    omark[l] = ustamp + 1
-                for k in range(n_und):
-                    if omark[und_l[k]] == ustamp:  # in the undamped excess only
-                        ratio = 1.0 / (1.0 + und_w[k])
-                        lo, hi = min(lo, ratio), max(hi, ratio)
-                worst = max(worst, 0.5 * np.log(hi / lo))
-            # moved: half the log range of (1 + rho_new) / (1 + rho_old)
-            ostamp = tick
-            tick += 2
-            for k in range(ce):
-                omark[old_l[k]] = ostamp
-                oval[old_l[k]] = old_w[k]
-            lo, hi = 1.0, 1.0
+                    new_l[k] = top_l[k]
+                    new_w[k] = top_w[k]
+            if mlo < 0.0:  # moved from the old excess, scattered (again)
+                ostamp = tick
+                tick += 2
+                for k in range(ce):
+                    omark[idx[e, k]] = ostamp
+                    oval[idx[e, k]] = val[e, k]
+                mlo, mhi = 1.0, 1.0
+                for k in range(n):
+                    l = new_l[k]
+                    o = oval[l] if omark[l] == ostamp else 0.0
+                    ratio = (1.0 + new_w[k]) / (1.0 + o)
+                    mlo, mhi = min(mlo, ratio), max(mhi, ratio)
+                    omark[l] = ostamp + 1
+                for k in range(ce):
+                    if omark[idx[e, k]] == ostamp:  # in the old excess only
+                        ratio = 1.0 / (1.0 + val[e, k])
+                        mlo, mhi = min(mlo, ratio), max(mhi, ratio)
             total = 0.0
             for k in range(n):
-                l = top_l[k]
-                w = top_w[k]
-                o = oval[l] if omark[l] == ostamp else 0.0
-                ratio = (1.0 + w) / (1.0 + o)
-                lo, hi = min(lo, ratio), max(hi, ratio)
-                omark[l] = ostamp + 1
-                idx[e, k] = l
+                w = new_w[k]
+                idx[e, k] = new_l[k]
                 val[e, k] = w
                 lg[e, k] = np.log1p(w)
                 total += w
-            for k in range(ce):
-                if omark[old_l[k]] == ostamp:  # in the old excess only
-                    ratio = 1.0 / (1.0 + old_w[k])
-                    lo, hi = min(lo, ratio), max(hi, ratio)
-            moved[e] = 0.5 * np.log(hi / lo)
+            moved[e] = 0.5 * np.log(mhi / mlo)
             belief_drift[j] += moved[e]
             cnt[e] = n
             msum[e] = total
