@@ -11,7 +11,7 @@ with the merge move timed separately. Reported per run:
   (the highest-log-joint state visited, and the VI / Binder point estimates of
   :mod:`spcopyro.results.point_estimate` over ~50 label maps of the second half, their speck
   concepts joined to others as ``spcopyro fit``'s ``vi`` and ``binder`` join them: told by the
-  words heard at each cell, :func:`spcopyro.results.posterior_means.words_per_cell`; the cells
+  utterances heard at each cell, :func:`spcopyro.results.posterior_means.words_per_cell`; the cells
   and specks joined are reported too);
 * the adjusted Rand index of each of those maps against the ground truth (where the house has
   one);
@@ -123,7 +123,7 @@ def run_chain(
     seconds = time.perf_counter() - start
     samples_array = np.stack(kept)
     maps = {"last": state.labels.numpy(), "map-visited": best_labels}
-    cell_words = words_per_cell(data)  # [N] as fit's vi and binder: which clusters are specks
+    cell_words = words_per_cell(data, settings.data.word_scaling)  # [N] as fit's vi, binder
     joined = {}
     for loss in ("vi", "binder"):
         tick = time.perf_counter()

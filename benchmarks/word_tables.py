@@ -102,7 +102,7 @@ def run(seeds: int, sweeps: int, spec: HouseSpec | None, report) -> dict[str, ob
                 options=GibbsOptions(), progress=False, thin=max(1, sweeps // 100),
             )  # fmt: skip
             drawn = dataclasses.replace(output, parameters_drawn=False)
-            sampled = with_sample_marginals(output, sweeps, data, settings.model)
+            sampled = with_sample_marginals(output, sweeps, data, settings)
             for kind, out in zip(KINDS, (drawn, output, sampled), strict=True):
                 result = result_of(out, house, counts, data, settings, "gibbs")
                 records[label][kind].append({"seed": seed, **score(result, house)})

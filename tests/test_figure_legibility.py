@@ -328,14 +328,15 @@ def test_the_summary_lines_of_concepts_go_larger_first(capsys):
     labels = [h.get_label() for h in concept_handles(result, np.zeros((num, 3)))]
     # largest first; listed in concepts.json too, as fit's listing says (the legend did not)
     assert labels[-2] == (
-        "4 specks of 14-18 cells where no word was heard (concepts 118, 117, 116, 115; "
-        "concepts.json lists them)"
+        "4 specks of 14-18 cells where under 0.1 words were heard (concepts 118, 117, 116, "
+        "115; concepts.json lists them)"
     ), labels[-2:]
     # where their words are, as fit's listing says (the legend's line did not)
     assert labels[-1] == "... 103 smaller concepts of 5 cells in concepts.json", labels[-2:]
     print_concepts(result, limit=12)
     lines = capsys.readouterr().out.splitlines()
-    assert lines[-3].startswith("  + 4 specks of 14-18 cells where no word was heard"), lines
+    speck_line = "  + 4 specks of 14-18 cells where under 0.1 words were heard"
+    assert lines[-3].startswith(speck_line), lines
     assert lines[-2] == "  ... 103 smaller concepts of 5 cells in concepts.json", lines
 
 

@@ -13,7 +13,7 @@ import numpy as np
 import pytest
 
 from spcopyro.inference.protocol import InferenceOutput, Trace
-from spcopyro.results.concept_words import SPECK_SHARE
+from spcopyro.results.concept_words import SPECK_SHARE, SPECK_WORDS
 from spcopyro.results.point_estimate import (
     LOSSES,
     _prepare,
@@ -73,6 +73,33 @@ def test_a_cluster_where_a_word_was_heard_is_kept_however_small(loss):
     assert found.speck_cells == 0 and found.expected_loss == raw.expected_loss
     quiet = point_estimate(samples, loss, cell_words=_words(ROOM + 1))  # heard next door only
     assert quiet.speck_cells == 1
+
+
+@pytest.mark.parametrize("loss", LOSSES)
+def test_a_cluster_that_heard_under_a_tenth_of_an_utterance_is_joined(loss):
+    """The reach share (coarse since 2026-12-06) gives nearly every cell of a room a small
+    positive count: room1dk5's concept 58, one cell that heard 0.013 of an utterance, was kept
+    by ``vi`` while a speck was a cluster where no word was heard. Under SPECK_WORDS (0.1)
+    utterances in its cells it is one, a one-cell or a two-cell cluster; at 0.1 it is kept."""
+    samples = _doorway()
+    raw = point_estimate(samples, loss)
+    faint = _words() + 0.013  # [N] every cell hears a little
+    found = point_estimate(samples, loss, cell_words=faint)
+    assert (found.speck_cells, found.specks) == (1, 1)
+    assert found.labels[ROOM] == found.labels[0] != found.labels[ROOM + 1]
+    at_rule = _words()
+    at_rule[ROOM] = SPECK_WORDS  # 0.1 utterances: no speck
+    kept = point_estimate(samples, loss, cell_words=at_rule)
+    np.testing.assert_array_equal(kept.labels, raw.labels)
+    assert kept.speck_cells == 0
+    pair = _rooms_with_droplets(0)  # the door's 2-cell droplet: cells 139, 140
+    words = np.full(pair.shape[1], 0.04)  # [N] 0.08 heard by the pair
+    words[[10, 150, 300]] = 2.0
+    codes, k = compact(point_estimate(pair, loss).labels)
+    door = codes[139]
+    assert np.count_nonzero(codes == door) == 2 and speck_clusters(codes, k, words)[door]
+    words[[139, 140]] = 0.05  # 0.1 heard by the pair
+    assert not speck_clusters(codes, k, words)[door]
 
 
 def _rooms_with_droplets(seed: int, samples: int = 16, room: int = 140) -> np.ndarray:
@@ -220,3 +247,42 @@ def test_a_fit_reports_its_estimate_without_specks(tmp_path, capsys):
     joined = inference["speck_cells_joined"]
     assert joined > 0 and f"; {joined} speck cells joined to other concepts: +" in said
     assert "vi-specks keeps them)" in said and "of them specks" not in said
+
+
+def test_the_join_and_the_listing_agree_on_a_fit_that_scales_its_words():
+    """``coarse`` counts each utterance 10 times (word_scaling) and spreads a fifth of it over
+    its room (the reach share): the join must read the words heard at each cell in the units of
+    the listing's ``result.heard``, utterances, or a one-cell cluster that heard 0.02 of an
+    utterance (0.2 in the model's counts) is a speck to the listing and kept by ``vi``. Every
+    speck of ``vi-specks`` here heard a little, and one at least 0.01 of an utterance, so model
+    counts would keep it."""
+    from spcopyro.config import preset
+    from spcopyro.fit.house import fit_house
+    from spcopyro.gibbs import GibbsOptions
+    from spcopyro.results.specks import speck_concepts
+    from spcopyro.synthetic import make_house
+
+    house = make_house(seed=0)
+    settings = preset("coarse", num_concepts=30, gamma=1.0)  # below critical: many droplets
+    scaling = settings.data.word_scaling
+    assert scaling == 10.0 and settings.data.footprint_reach_share > 0
+    common = dict(sweeps=60, progress=False, marginal_samples=20, seed=3,
+                  options=GibbsOptions(backend="torch", merge_moves=0.5))  # fmt: skip
+    raw = fit_house(house, settings, point_estimate="vi-specks", **common)
+    fit = fit_house(house, settings, point_estimate="vi", **common)
+    specks = speck_concepts(raw)
+    heard = [raw.heard(c) for c in specks]  # utterances
+    assert len(specks) > 2 and all(0 < h < SPECK_WORDS for h in heard), heard
+    assert max(heard) * scaling >= SPECK_WORDS  # in model counts: no speck
+    assert speck_concepts(fit) == []
+    cells = int(np.isin(raw.labels, specks).sum())
+    assert (fit.inference["speck_cells_joined"], fit.inference["specks_joined"]) == (
+        cells,
+        len(specks),
+    )
+    sizes = raw.concept_sizes()
+    small = [c for c in np.flatnonzero(sizes) if sizes[c] < SPECK_SHARE * raw.grid.num_free]
+    kept = [c for c in small if c not in specks]  # heard 0.1 or more: no speck, still there
+    assert len(kept) == 1 and raw.heard(int(kept[0])) >= SPECK_WORDS
+    kept_cells = raw.labels == kept[0]  # [N]
+    assert len(set(fit.labels[kept_cells])) == 1  # its cells still one cluster in vi

@@ -119,7 +119,7 @@ def test_the_listing_and_the_legend_give_the_specks_one_line(count, capsys):
     ids = [str(c) for c in range(2, count + 2)]
     named = ids if count <= 9 else ids[:8]
     more = "" if count <= 9 else f", ... ({count - 8} more)"
-    assert text == (f"{count} specks of 1 cell where no word was heard (concepts "
+    assert text == (f"{count} specks of 1 cell where under 0.1 words were heard (concepts "
                     f"{', '.join(named)}{more}; concepts.json lists them)")  # fmt: skip
     assert legend_concepts(result) == {0, 1} | {int(c) for c in named}
 
@@ -156,3 +156,33 @@ def test_concepts_json_marks_the_specks_with_their_support(tmp_path):
         (2, True, 0.3),
         (3, True, 0.5),
     ]
+
+
+def test_a_concept_that_heard_under_a_tenth_of_an_utterance_is_a_speck(capsys):
+    """The reach share (``coarse``'s footprint_reach_share 0.2 since 2026-12-06) gives nearly
+    every cell of a room a small positive count: room1dk5's concept 58, one cell that heard
+    0.013 of an utterance, was listed as a concept and answered ``where`` while the rule asked
+    for no word heard at all. Under SPECK_WORDS utterances on under SPECK_SHARE of the free
+    cells is a speck; SPECK_WORDS or more, or SPECK_SHARE of the cells or more, is not. The
+    listing reads ``heard`` in utterances: the model's counts over ``word_scaling``."""
+    import dataclasses
+
+    from spcopyro.cli.concept_listing import print_concepts
+    from spcopyro.config import DataPreparation
+    from spcopyro.results.concept_words import SPECK_SHARE, SPECK_WORDS
+    from spcopyro.results.specks import speck_concepts
+
+    assert (SPECK_WORDS, SPECK_SHARE) == (0.1, 0.005)
+    assert is_speck(1, 0.013, 1000) and is_speck(4, 0.0999, 1000) and is_speck(1, 0.0, 1000)
+    assert not is_speck(1, 0.1, 1000) and not is_speck(2, 0.3, 1000)  # several at one spot
+    assert not is_speck(5, 0.0, 1000)  # 0.5 % of the free cells: no speck
+    assert not is_speck(1, None, 1000)  # a result that does not know its counts
+    result = _rooms_and_specks(specks=3)
+    result = dataclasses.replace(result, preparation=DataPreparation(word_scaling=10.0))
+    result.concept_totals[2:, 2] = [0.13, 0.999, 1.0]  # model counts: 0.013, 0.0999, 0.1 heard
+    assert result.heard(2) == pytest.approx(0.013)
+    assert speck_concepts(result) == [2, 3]
+    print_concepts(result)
+    out = capsys.readouterr().out
+    assert "  + 2 specks of 1 cell where under 0.1 words were heard (concepts 2, 3; " in out
+    assert "  concept   4:      1 cell   0.1 words" in out, out  # listed as a concept

@@ -164,7 +164,7 @@ def test_a_concept_where_no_word_was_heard_says_so(capsys):
     lines = capsys.readouterr().out.splitlines()
     # concept 2 holds under 0.5 % of the cells: a speck, listed on the specks' line
     assert not any(line.strip().startswith("concept   2:") for line in lines)
-    assert any(line.strip().startswith("+ 1 speck of") and "no word was heard (concept 2; "
+    assert any(line.strip().startswith("+ 1 speck of") and "under 0.1 words were heard (concept 2; "
                "concepts.json lists it)" in line for line in lines)  # fmt: skip
     assert any("concept   1:" in line and "distinctive: bed x1.5" in line for line in lines)
     silent_room = dataclasses.replace(
@@ -240,7 +240,8 @@ def test_semantic_map_figure_writes_words_on_their_regions_and_marks_utterances(
     legend = [t.get_text() for t in ax.get_legend().get_texts()]
     assert any("where a word was heard" in t for t in legend)
     # a speck: one line for them all, saying where they are listed
-    assert "1 speck of 1 cell where no word was heard (concept 2; concepts.json lists it)" in legend
+    speck = "1 speck of 1 cell where under 0.1 words were heard (concept 2; concepts.json lists it)"
+    assert speck in legend
     assert not any(t.startswith("[2]") for t in legend)
     assert any("distinctive: kitchen x1.7" in t for t in legend)
     totals = np.array([[3.0, 3.0, 5.0], [2.0, 2.0, 0.0], [0.0, 0.0, 0.0]])  # room 1 heard none

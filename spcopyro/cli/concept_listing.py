@@ -32,8 +32,10 @@ def print_concepts(
     """The ``limit`` largest concepts, one line each: cells, words heard there, the top words
     (posterior means) and the distinctive ones with their lifts
     (:mod:`spcopyro.results.concept_words`), or that no word was heard there. Specks (concepts
-    under :data:`SPECK_SHARE` of the free cells where no word was heard: a doorway or corner
-    cell the Potts field holds weakly, docs/real_houses.md) share one line at the end, with how
+    under :data:`~spcopyro.results.concept_words.SPECK_SHARE` of the free cells where fewer
+    than :data:`~spcopyro.results.concept_words.SPECK_WORDS` utterances were heard,
+    :func:`~spcopyro.results.concept_words.is_speck`: a doorway or corner cell the Potts field
+    holds weakly, docs/real_houses.md) share one line at the end, with how
     much of the posterior holds them (:func:`~spcopyro.results.specks.support_text`).
     ``concepts``: ``result.concepts()`` where the caller has it already (computed if None).
     A fit that did not model its words (:func:`~spcopyro.results.concept_words.words_modelled`)

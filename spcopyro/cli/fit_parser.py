@@ -175,9 +175,10 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         "or the partition minimising the expected Binder loss (binder) or "
                         "variation of information (vi: a distance between label maps, not "
                         "variational inference) over the --marginal-samples maps, without "
-                        "specks (concepts on under 0.5%% of the free cells where no word was "
-                        "heard: their cells join the concepts that raise the loss least; the "
-                        "fit says how many and by how much); binder-specks, vi-specks: the "
+                        "specks (concepts on under 0.5%% of the free cells where under 0.1 "
+                        "words were heard: their cells join the concepts that raise the loss "
+                        "least; the fit says how many and by how much); binder-specks, "
+                        "vi-specks: the "
                         "minimiser with its specks; writes agreement.png (default: vi with "
                         "--preset coarse or auto for gibbs or vi-gibbs with a number of "
                         "--sweeps, else map-visited)")  # fmt: skip

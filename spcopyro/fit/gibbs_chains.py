@@ -18,7 +18,7 @@ import torch
 
 from spcopyro._util.progress import setup_bar
 from spcopyro._util.timings import timed
-from spcopyro.config import SpCoConfig, SpCoSettings
+from spcopyro.config import SpCoSettings
 from spcopyro.gibbs.chains import advance_chains
 from spcopyro.gibbs.checkpoint import load_chains, read_record, save_chains
 from spcopyro.gibbs.hyperparameters import config_at_posterior_mean
@@ -137,9 +137,7 @@ def gibbs_outputs(
         entry = gibbs_record(options, sweeps, chain.backend.name)
         output = output_from_run(chain.to_run(), {**entry, "seed": seed, "init": init})
         outputs.append(
-            with_sample_marginals(
-                output, sweeps, data, settings.model, point_estimate, progress=progress
-            )
+            with_sample_marginals(output, sweeps, data, settings, point_estimate, progress=progress)
         )
     return outputs
 
@@ -180,17 +178,19 @@ def with_sample_marginals(
     output: InferenceOutput,
     sweeps: int,
     data: ModelData,
-    config: SpCoConfig,
+    settings: SpCoSettings,
     point_estimate: str = "map-visited",
     progress: bool | None = False,
 ) -> InferenceOutput:
     """``output`` with the label frequencies of its samples from the second half of the sweeps
     as its marginals (unchanged if it kept none there), reporting ``point_estimate`` over them
     (:func:`spcopyro.results.point_estimate.with_point_estimate`; ``vi`` and ``binder`` without
-    specks, told by the words ``data`` counts at each cell, footprint included), and a
-    sampler's pi and emissions as their posterior means: given the point estimate's labels when
-    it is one, else averaged over those samples
+    specks, told by the utterances ``data`` counts at each cell, footprint included: its word
+    counts divided by ``settings.data.word_scaling``, the units of ``result.heard``), and a
+    sampler's pi and emissions as their posterior means (the model ``settings.model``): given
+    the point estimate's labels when it is one, else averaged over those samples
     (:func:`~spcopyro.results.posterior_means.with_posterior_means`)."""
+    config = settings.model
     if output.label_samples is None or output.sample_iterations is None:
         return output
     late = np.asarray(output.sample_iterations) >= sweeps // 2
@@ -199,7 +199,7 @@ def with_sample_marginals(
     samples = np.asarray(output.label_samples)[late]  # [S', N]
     output = with_point_estimate(
         output, samples, point_estimate, config.num_concepts, progress=progress,
-        cell_words=words_per_cell(data),  # vi, binder: which clusters are specks
+        cell_words=words_per_cell(data, settings.data.word_scaling),  # vi, binder: the specks
     )  # fmt: skip
     # One set of concept names per result: the kept samples renamed to the reported map's
     # concepts before their frequencies are counted (issue 22 item 1).

@@ -411,7 +411,7 @@ def fit_house_chains(
                 output.options.update(seed=int(seed), init=init_name(init))
                 if output.marginals is None:  # a sampler (vi-gibbs): its label frequencies
                     output = gibbs_chains.with_sample_marginals(
-                        output, int(sweeps), data, settings.model, point_estimate,
+                        output, int(sweeps), data, settings, point_estimate,
                         progress=progress,
                     )  # fmt: skip
                 fits.append(result_of(output, house, counts, data, settings, method, record))

@@ -42,6 +42,7 @@ __all__ = [
     "WORDS_NOT_MODELLED_NOTE",
     "ESTIMATED_WORDS",
     "SPECK_SHARE",
+    "SPECK_WORDS",
     "SPECKS_NAMED",
     "is_speck",
     "speck_line",
@@ -291,10 +292,25 @@ def format_concept_words(
 
 
 SPECK_SHARE = 0.005
-"""A concept where no word was heard, on fewer than this share of the free cells, is a speck:
-a doorway or convex-corner cell the Potts field holds weakly (docs/real_houses.md, "What is
-still open"). ``fit``'s listing and the semantic map's legend put the specks on one line; the
-figure labels regions from the same 0.5 %."""
+"""A concept where fewer than :data:`SPECK_WORDS` utterances were heard, on fewer than this
+share of the free cells, is a speck (:func:`is_speck`): a doorway or convex-corner cell the
+Potts field holds weakly (docs/real_houses.md, "What is still open"). ``fit``'s listing and the
+semantic map's legend put the specks on one line; the figure labels regions from the same
+0.5 %."""
+
+SPECK_WORDS = 0.1
+"""A concept on fewer than :data:`SPECK_SHARE` of the free cells is a speck where fewer than
+this many utterances were heard in its cells (the words heard, in utterances: the model's
+counts divided by ``word_scaling``, as ``result.heard`` gives them; the listing writes such a
+count "<0.1" or "0.1"). The rule was "no word heard" (0) until the footprint's reach share
+(``footprint_reach_share``, 0.2 under ``coarse`` since 2026-12-06) spread a fifth of each
+observation's weight over its geodesic Voronoi cell within its room: nearly every free cell of
+a room then hears a small positive count, and a one-cell droplet of the Potts field was listed
+as a concept, and answered ``where`` (room1dk5: concept 58, one cell that heard 0.013 of an
+utterance, the runner-up for tv, table and bed under ``where --prior pi``). Under ``coarse``'s
+0.75 m footprint a cell where an utterance was said gets about 0.03 of it, so a cluster of a few
+cells around the spot of one utterance is a speck, while one where several were said at one
+spot (or one holding more of an utterance's footprint) is not."""
 
 
 def near_uniform(rows: np.ndarray) -> bool:
@@ -310,9 +326,11 @@ def near_uniform(rows: np.ndarray) -> bool:
 
 
 def is_speck(cells: int, heard: float | None, num_free: int) -> bool:
-    """Whether a concept of ``cells`` cells where ``heard`` words were heard is a speck
-    (:data:`SPECK_SHARE`); a result that does not know its counts (``heard`` None) has none."""
-    return heard == 0 and cells < SPECK_SHARE * num_free
+    """Whether a concept of ``cells`` cells where ``heard`` utterances were heard is a speck:
+    fewer than :data:`SPECK_WORDS` heard on fewer than :data:`SPECK_SHARE` of the ``num_free``
+    free cells. ``heard`` is in utterances (the model's counts divided by ``word_scaling``,
+    ``result.heard``); a result that does not know its counts (``heard`` None) has none."""
+    return heard is not None and heard < SPECK_WORDS and cells < SPECK_SHARE * num_free
 
 
 SPECKS_NAMED = 8
@@ -326,13 +344,14 @@ def speck_line(specks: Sequence[int], sizes: Sequence[int]) -> str:
     (concept ids, largest first) of ``sizes`` cells, the first :data:`SPECKS_NAMED` named and
     the rest counted (:func:`~spcopyro._util.messages.listed`).
 
-    E.g. ``"8 specks of 1 cell where no word was heard (concepts 2, 3, 4, 43, 68, 70, 81, 87;
-    concepts.json lists them)"``."""
+    E.g. ``"8 specks of 1 cell where under 0.1 words were heard (concepts 2, 3, 4, 43, 68, 70,
+    81, 87; concepts.json lists them)"`` (:data:`SPECK_WORDS`)."""
     which, them = ("concept", "it") if len(specks) == 1 else ("concepts", "them")
     names = listed([str(c) for c in specks], SPECKS_NAMED)
     where = f"({which} {names}; concepts.json lists {them})"
     count = plural(len(sizes), "speck")  # "4 specks"
-    return f"{count} of {cells_range(sizes)} where no word was heard {where}"
+    heard = f"where under {SPECK_WORDS:g} words were heard"  # is_speck's rule
+    return f"{count} of {cells_range(sizes)} {heard} {where}"
 
 
 def named_specks(specks: Sequence[int]) -> list[int]:

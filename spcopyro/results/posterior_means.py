@@ -47,6 +47,7 @@ import dataclasses
 import numpy as np
 import torch
 
+from spcopyro._util.number_checks import is_number
 from spcopyro.config import WORDS, SpCoConfig
 from spcopyro.inference.protocol import InferenceOutput
 from spcopyro.likelihood import concept_statistics
@@ -125,13 +126,19 @@ def concept_totals(
     return totals
 
 
-def words_per_cell(data: ModelData) -> np.ndarray:
-    """[N] float64 the words counted at each free cell (the model's counts, 0 off the observed
-    cells): :func:`concept_totals`' words column is their sum over a concept's cells, so a
-    concept where none was heard (a speck's test, :mod:`spcopyro.results.speck_join`) is one
-    whose cells all hold 0."""
+def words_per_cell(data: ModelData, word_scaling: float) -> np.ndarray:
+    """[N] float64 the utterances heard at each free cell (0 off the observed cells): the
+    model's word counts divided by ``word_scaling`` (the preparation's
+    ``DataPreparation.word_scaling``, by which they were multiplied), the units of
+    ``result.heard``, which sums the same counts over a concept's cells (:func:`concept_totals`'
+    words column, divided by it). A speck's test (:func:`~spcopyro.results.concept_words.is_speck`,
+    :mod:`spcopyro.results.speck_join`) reads them: under
+    :data:`~spcopyro.results.concept_words.SPECK_WORDS` utterances heard in a cluster's cells."""
+    if not (is_number(word_scaling) and np.isfinite(word_scaling) and word_scaling > 0):
+        raise ValueError(f"word_scaling must be a positive finite number, got {word_scaling!r}")
     per_cell = data.modality(WORDS).counts.sum(-1).to(DTYPE).numpy()  # [M]
-    return np.bincount(data.obs_cells.numpy(), weights=per_cell, minlength=data.num_free)
+    counts = np.bincount(data.obs_cells.numpy(), weights=per_cell, minlength=data.num_free)  # [N]
+    return counts / float(word_scaling)
 
 
 def concept_word_counts(

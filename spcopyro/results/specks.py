@@ -1,9 +1,11 @@
 r"""Speck concepts and how much of the posterior holds them.
 
 A speck (:func:`~spcopyro.results.concept_words.is_speck`) is a concept in use on fewer than
-:data:`~spcopyro.results.concept_words.SPECK_SHARE` of the free cells where no word was heard. It
-is counted among the concepts in use, but it is no place. Since 2026-12-06 the point estimates
-``vi`` and ``binder`` have none (unless every concept is one): their cells are joined to other
+:data:`~spcopyro.results.concept_words.SPECK_SHARE` of the free cells where fewer than
+:data:`~spcopyro.results.concept_words.SPECK_WORDS` utterances were heard (no word at all until
+the footprint's reach share gave nearly every cell of a room a little). It is counted among
+the concepts in use, but it is no place. Since 2026-12-06 the point estimates ``vi`` and
+``binder`` have none (unless every concept is one): their cells are joined to other
 concepts (:mod:`~spcopyro.results.speck_join`; on the README's fit of the embedded house its six
 one-cell specks, for 0.00078 nats of expected variation of information, 0.1550 -> 0.1558; those
 cells agree with the concept they joined in 34-46 % of the kept samples, which agreement.png

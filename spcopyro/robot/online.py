@@ -458,7 +458,7 @@ def fit_update(
                 raise FitInterrupted(where_stopped) from None
             if output.marginals is None:  # a sampler: its label frequencies; a variational
                 output = gibbs_chains.with_sample_marginals(  # method's marginals: its q(C)
-                    output, int(sweeps), start.data, start.settings.model, point_estimate
+                    output, int(sweeps), start.data, start.settings, point_estimate
                 )
             merge = start.merge
             output.options.update(
