@@ -178,10 +178,9 @@ def add_parser(subparsers: argparse._SubParsersAction) -> None:
                         "specks (concepts on under 0.5%% of the free cells where under 0.1 "
                         "words were heard: their cells join the concepts that raise the loss "
                         "least; the fit says how many and by how much); binder-specks, "
-                        "vi-specks: the "
-                        "minimiser with its specks; writes agreement.png (default: vi with "
-                        "--preset coarse or auto for gibbs or vi-gibbs with a number of "
-                        "--sweeps, else map-visited)")  # fmt: skip
+                        "vi-specks: the minimiser with its specks; writes agreement.png "
+                        "(default: vi with --preset coarse or auto for gibbs or vi-gibbs with "
+                        "a number of --sweeps, else map-visited)")  # fmt: skip
     p.add_argument("--feature-scaling",
                    help="image features as probability, floor100 or a number s (s * f) "
                         f"{_PRESET_DEFAULT}")  # fmt: skip

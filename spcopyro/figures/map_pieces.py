@@ -38,13 +38,12 @@ from spcopyro.results.concept_words import (
     NO_WORDS,
     cells_range,
     format_words_heard,
-    is_speck,
     named_specks,
     shown_top_words,
     speck_line,
 )
 from spcopyro.results.result import SpCoResult
-from spcopyro.results.specks import support_text
+from spcopyro.results.specks import speck_concepts, support_text
 
 __all__ = [
     "OFF_MAP_RGB",
@@ -243,11 +242,8 @@ def concept_handles(
 def _legend_split(result: SpCoResult) -> tuple[np.ndarray, list[int]]:
     """The concepts in use, largest first, that are not specks ``[L']``, and the specks:
     :func:`concept_handles` gives the first their own entries, the specks one line."""
-    sizes = result.concept_sizes()
-    all_used = result.concepts_in_use()
-    specks = [int(c) for c in all_used
-              if is_speck(int(sizes[c]), result.heard(int(c)), result.grid.num_free)]  # fmt: skip
-    used = np.array([c for c in all_used if int(c) not in specks], dtype=np.int64)
+    specks = speck_concepts(result)
+    used = np.array([c for c in result.concepts_in_use() if int(c) not in specks], dtype=np.int64)
     return used, specks
 
 

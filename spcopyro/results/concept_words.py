@@ -292,7 +292,7 @@ def format_concept_words(
 
 
 SPECK_SHARE = 0.005
-"""A concept where fewer than :data:`SPECK_WORDS` utterances were heard, on fewer than this
+"""A concept where fewer than :data:`SPECK_WORDS` words were heard, on fewer than this
 share of the free cells, is a speck (:func:`is_speck`): a doorway or convex-corner cell the
 Potts field holds weakly (docs/real_houses.md, "What is still open"). ``fit``'s listing and the
 semantic map's legend put the specks on one line; the figure labels regions from the same
@@ -300,14 +300,14 @@ semantic map's legend put the specks on one line; the figure labels regions from
 
 SPECK_WORDS = 0.1
 """A concept on fewer than :data:`SPECK_SHARE` of the free cells is a speck where fewer than
-this many utterances were heard in its cells (the words heard, in utterances: the model's
-counts divided by ``word_scaling``, as ``result.heard`` gives them; the listing writes such a
-count "<0.1" or "0.1"). The rule was "no word heard" (0) until the footprint's reach share
+this many words were heard in its cells (the words heard, tf-idf weighted if so prepared: the
+model's counts divided by ``word_scaling``, as ``result.heard`` gives them; the listing writes
+such a count "<0.1" or "0.1"). The rule was "no word heard" (0) until the footprint's reach share
 (``footprint_reach_share``, 0.2 under ``coarse`` since 2026-12-06) spread a fifth of each
 observation's weight over its geodesic Voronoi cell within its room: nearly every free cell of
 a room then hears a small positive count, and a one-cell droplet of the Potts field was listed
-as a concept, and answered ``where`` (room1dk5: concept 58, one cell that heard 0.013 of an
-utterance, the runner-up for tv, table and bed under ``where --prior pi``). Under ``coarse``'s
+as a concept, and answered ``where`` (room1dk5: concept 58, one cell that heard 0.013 of a
+word, the runner-up for tv, table and bed under ``where --prior pi``). Under ``coarse``'s
 0.75 m footprint a cell where an utterance was said gets about 0.03 of it, so a cluster of a few
 cells around the spot of one utterance is a speck, while one where several were said at one
 spot (or one holding more of an utterance's footprint) is not."""
@@ -326,9 +326,9 @@ def near_uniform(rows: np.ndarray) -> bool:
 
 
 def is_speck(cells: int, heard: float | None, num_free: int) -> bool:
-    """Whether a concept of ``cells`` cells where ``heard`` utterances were heard is a speck:
+    """Whether a concept of ``cells`` cells where ``heard`` words were heard is a speck:
     fewer than :data:`SPECK_WORDS` heard on fewer than :data:`SPECK_SHARE` of the ``num_free``
-    free cells. ``heard`` is in utterances (the model's counts divided by ``word_scaling``,
+    free cells. ``heard`` counts words (the model's counts divided by ``word_scaling``,
     ``result.heard``); a result that does not know its counts (``heard`` None) has none."""
     return heard is not None and heard < SPECK_WORDS and cells < SPECK_SHARE * num_free
 

@@ -48,7 +48,7 @@ The reported estimates ``vi`` and ``binder`` (:func:`with_point_estimate`) are t
 without specks: under the model every kept sample holds many one-cell droplets of labels that
 form and dissolve in corners and doorways, the search keeps such a cell apart where its
 co-clustering probability with every neighbouring cluster is below about one half, and a
-cluster on fewer than 0.5 % of the cells where fewer than 0.1 utterances were heard
+cluster on fewer than 0.5 % of the cells where fewer than 0.1 words were heard
 (:func:`~spcopyro.results.concept_words.is_speck`) is no place. Each such cell is moved, by the
 exact :math:`\Delta_i` above, to the cluster that is no speck where it raises the expected loss
 least (:mod:`~spcopyro.results.speck_join`), and the estimate's expected loss is recomputed
@@ -376,7 +376,7 @@ def point_estimate(
         starts: greedy searches from that many samples of lowest expected loss; the best wins.
         max_clusters: open no new cluster once the estimate has this many (e.g. the model's
             L; the samples' labels are below it, so the estimate's clusters stay within it).
-        cell_words: [N] the utterances heard at each cell (the model's counts divided by
+        cell_words: [N] the words heard at each cell (the model's counts divided by
             ``word_scaling``, :func:`~spcopyro.results.posterior_means.words_per_cell`): the
             best search's specks are joined to other clusters
             (:func:`~spcopyro.results.speck_join.join_specks`) and the expected loss is that
@@ -490,7 +490,7 @@ def with_point_estimate(
     (unchanged for ``"map-visited"``), with :func:`agreement_probability` as its ``agreement``.
 
     ``"vi"`` and ``"binder"`` join the specks of the loss's minimiser to other clusters (a
-    speck by ``cell_words`` [N], the utterances heard at each cell, which they need:
+    speck by ``cell_words`` [N], the words heard at each cell, which they need:
     :mod:`~spcopyro.results.speck_join`); ``"vi-specks"`` and ``"binder-specks"`` keep them.
     The estimate's clusters are named by the concepts of ``output.labels`` they share most cells
     with (:func:`concept_labels`), so pi and the emission distributions of the reported state
@@ -502,7 +502,7 @@ def with_point_estimate(
     loss, joins = estimate_loss(name)
     if joins and cell_words is None:
         raise ValueError(
-            f"point estimate {name!r} joins speck clusters, told by the utterances heard at "
+            f"point estimate {name!r} joins speck clusters, told by the words heard at "
             f"each cell: pass cell_words [N] (or {loss + KEEPS_SPECKS!r}, which keeps them)"
         )
     with timed("point_estimate"):

@@ -127,13 +127,13 @@ def concept_totals(
 
 
 def words_per_cell(data: ModelData, word_scaling: float) -> np.ndarray:
-    """[N] float64 the utterances heard at each free cell (0 off the observed cells): the
+    """[N] float64 the words heard at each free cell (0 off the observed cells): the
     model's word counts divided by ``word_scaling`` (the preparation's
     ``DataPreparation.word_scaling``, by which they were multiplied), the units of
     ``result.heard``, which sums the same counts over a concept's cells (:func:`concept_totals`'
     words column, divided by it). A speck's test (:func:`~spcopyro.results.concept_words.is_speck`,
     :mod:`spcopyro.results.speck_join`) reads them: under
-    :data:`~spcopyro.results.concept_words.SPECK_WORDS` utterances heard in a cluster's cells."""
+    :data:`~spcopyro.results.concept_words.SPECK_WORDS` words heard in a cluster's cells."""
     if not (is_number(word_scaling) and np.isfinite(word_scaling) and word_scaling > 0):
         raise ValueError(f"word_scaling must be a positive finite number, got {word_scaling!r}")
     per_cell = data.modality(WORDS).counts.sum(-1).to(DTYPE).numpy()  # [M]

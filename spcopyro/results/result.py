@@ -289,7 +289,7 @@ class SpCoResult:
 
     def heard(self, concept: int, modality: str = WORDS) -> float | None:
         """The total count of ``modality`` observed in the concept's region (words: how many
-        were heard there, tf-idf weighted if so prepared, in utterances: the model's counts
+        were heard there, tf-idf weighted if so prepared, in words: the model's counts
         divided by ``word_scaling``); None when the result does not know."""
         concept = self._concept(concept)
         if self.concept_totals is None:

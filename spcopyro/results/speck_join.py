@@ -6,7 +6,7 @@ form and dissolve in corners and doorways, and the minimiser keeps a cell apart 
 co-clustering probability with every neighbouring cluster is below about one half: a speck
 (:func:`~spcopyro.results.concept_words.is_speck`, a cluster on fewer than
 :data:`~spcopyro.results.concept_words.SPECK_SHARE` of the cells where fewer than
-:data:`~spcopyro.results.concept_words.SPECK_WORDS` utterances were heard) that is no place,
+:data:`~spcopyro.results.concept_words.SPECK_WORDS` words were heard) that is no place,
 only droplets whose labels differ from sample to sample reported as a cluster of their own.
 :func:`join_specks` moves every cell of a speck to the cluster that is no speck where the move
 lowers the expected loss most (or raises it least), one cell at a time, each by the exact change
@@ -25,9 +25,9 @@ that is no speck only gains cells, so it stays one, and every speck empties. Eac
 cheapest for its cell when it is made and the other clusters' cells are not moved again: a
 greedy approximation of the minimiser among the partitions without specks, not its proof (on
 the README's fit every joined cell went to a concept one of its neighbours holds). A cluster
-where 0.1 utterances or more were heard is never a speck, however small; one that heard less
+where 0.1 words or more were heard is never a speck, however small; one that heard less
 (the footprint's reach share gives nearly every cell of a room a little) is, as the listing
-and the legend call it: the words at each cell are given in utterances (the model's counts
+and the legend call it: the words at each cell are counted as words (the model's counts
 divided by ``word_scaling``, :func:`~spcopyro.results.posterior_means.words_per_cell`), the
 units of ``result.heard``.
 """
@@ -62,12 +62,12 @@ class Joined(NamedTuple):
 
 
 def check_cell_words(cell_words: np.ndarray, cells: int) -> np.ndarray:
-    """``cell_words`` as a float64 ``[N]`` array of non-negative counts (utterances heard at
+    """``cell_words`` as a float64 ``[N]`` array of non-negative counts (words heard at
     each cell), else ValueError."""
     words = np.asarray(cell_words, dtype=np.float64)
     if words.shape != (cells,) or not np.all(np.isfinite(words)) or np.any(words < 0):
         raise ValueError(
-            f"cell_words must be [{cells}] finite counts >= 0 (the utterances heard at each "
+            f"cell_words must be [{cells}] finite counts >= 0 (the words heard at each "
             "cell), "
             f"got shape {words.shape}"
         )
@@ -76,8 +76,8 @@ def check_cell_words(cell_words: np.ndarray, cells: int) -> np.ndarray:
 
 def speck_clusters(estimate: np.ndarray, k: int, cell_words: np.ndarray) -> np.ndarray:
     """[k] bool: whether each cluster of ``estimate`` [N] (codes 0..k-1) is a speck, by
-    :func:`~spcopyro.results.concept_words.is_speck` of its cells and of the utterances heard
-    on them (``cell_words`` [N], in utterances: the model's counts divided by ``word_scaling``;
+    :func:`~spcopyro.results.concept_words.is_speck` of its cells and of the words heard
+    on them (``cell_words`` [N], in words: the model's counts divided by ``word_scaling``;
     the result's ``heard`` sums the same counts in the same units)."""
     sizes = np.bincount(estimate, minlength=k)  # [k]
     heard = np.bincount(estimate, weights=cell_words, minlength=k)  # [k]
@@ -113,7 +113,7 @@ def join_specks(
     """``estimate`` [N] (codes 0..k-1) with every speck's cells moved to clusters that are no
     specks (module doc); unchanged where it has no speck, or nothing but specks.
     ``prepared``: the samples of :func:`~spcopyro.results.point_estimate.point_estimate`,
-    ``cell_words`` [N] the utterances heard at each cell (:func:`check_cell_words`)."""
+    ``cell_words`` [N] the words heard at each cell (:func:`check_cell_words`)."""
     speck = speck_clusters(estimate, k, cell_words)  # [k]
     targets = np.flatnonzero(~speck)  # [T]
     cells = np.flatnonzero(speck[estimate])  # [M]

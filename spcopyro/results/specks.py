@@ -2,7 +2,7 @@ r"""Speck concepts and how much of the posterior holds them.
 
 A speck (:func:`~spcopyro.results.concept_words.is_speck`) is a concept in use on fewer than
 :data:`~spcopyro.results.concept_words.SPECK_SHARE` of the free cells where fewer than
-:data:`~spcopyro.results.concept_words.SPECK_WORDS` utterances were heard (no word at all until
+:data:`~spcopyro.results.concept_words.SPECK_WORDS` words were heard (no word at all until
 the footprint's reach share gave nearly every cell of a room a little). It is counted among
 the concepts in use, but it is no place. Since 2026-12-06 the point estimates ``vi`` and
 ``binder`` have none (unless every concept is one): their cells are joined to other
