@@ -19,9 +19,9 @@ from spcopyro.guides.run import initial_q
 from spcopyro.synthetic import HouseSpec, make_house
 
 try:  # the compiled backend is the fast extra's; the reference's tests run without it
-    from spcopyro.guides import numba_lbp
+    from spcopyro.guides import numba_lbp, numba_lbp_pass
 except ImportError:
-    numba_lbp = None
+    numba_lbp = numba_lbp_pass = None
 needs_numba = pytest.mark.skipif(numba_lbp is None, reason="numba is not installed (.[fast])")
 
 EXACT = dict(support=0, threshold=0.0, active_tolerance=0.0)  # no truncation, no skipping
@@ -204,6 +204,68 @@ def test_each_message_records_how_far_it_moved(damping, support):
     np.testing.assert_allclose(bp.moved[live], expected[live], rtol=1e-9, atol=1e-12)
     live_entries = np.arange(bp.idx.shape[1])[None, :] < bp.cnt[:, None]
     np.testing.assert_allclose(bp.lg[live_entries], np.log1p(bp.val[live_entries]), rtol=1e-14)
+
+
+MESSAGES = ("idx", "val", "lg", "cnt", "msum", "moved", "drift", "residual", "belief_drift")
+
+
+@needs_numba
+@pytest.mark.parametrize("damping", [0.0, 0.5])
+@pytest.mark.parametrize("support", [0, 3])
+def test_each_cell_records_how_far_damping_left_its_messages(damping, support):
+    """One pass's ``residual`` of every cell against its definition (the module docstring):
+    the largest over its messages of half the log range over l of (1 + rho_stored) / (1 +
+    rho_undamped), the range taken with 1 in it; 0 undamped, kept by a skipped cell. The
+    undamped messages are the pass's own at damping 0 from what the cell saw: the pass replayed
+    cell by cell in its order (which reproduces it), each sender also sent undamped from a copy.
+    On the damped paths with a cap (support 3: the top-K cut after damping, where the range is
+    measured again over what is kept) and without."""
+    data, cfg = small_house()
+    # threshold 3e-2: damping takes some undamped entries below it (their own path)
+    options = LBPOptions(backend="numba", damping=damping, passes=1, support=support,
+                         threshold=3e-2, active_tolerance=1e-2)  # fmt: skip
+    state, _, _ = iterate(data, cfg, options, 3)
+    bp = state.bp
+    for _ in range(20):  # the same globals until the active set skips a cell (1-10 passes)
+        bp.run(state.factors, cfg.gamma)
+        if bp.sent_cells < data.num_free:
+            break
+    replay = {name: getattr(bp, name).copy() for name in MESSAGES}
+    bp.run(state.factors, cfg.gamma)  # the same globals: no base row drifted
+    beta, _, border, bsum, _ = bp._tables
+    D, L = bp.nb.shape[1], cfg.num_concepts
+
+    def send(arrays: dict, cell: int, damping: float) -> int:
+        return numba_lbp_pass._message_pass(
+            *(arrays[name] for name in MESSAGES), np.array([cell]), bp.nb, bp.rev, bp.rows,
+            beta, border, bsum, np.zeros(len(bsum)), float(cfg.gamma), bp.threshold, damping,
+            bp.active_tolerance, np.zeros(L, np.int64), np.zeros(L, np.int64),
+            np.zeros((D, L), np.int64), np.zeros(L), np.zeros(L), np.zeros((D, L)),
+        )  # fmt: skip
+
+    def rows_of(arrays: dict, rows: np.ndarray) -> np.ndarray:
+        """[len(rows), L] those stored messages' excesses, dense."""
+        dense = np.zeros((len(rows), L))
+        for k, e in enumerate(rows):
+            dense[k, arrays["idx"][e, : arrays["cnt"][e]]] = arrays["val"][e, : arrays["cnt"][e]]
+        return dense
+
+    expected = replay["residual"].copy()  # [N]
+    for i in bp.order:
+        undamped = {name: array.copy() for name, array in replay.items()}
+        undamped["drift"][i] = np.inf  # sends
+        send(undamped, i, 0.0)
+        if send(replay, i, damping) == 0:
+            continue  # skipped: its residual stays
+        live = bp.nb[i] >= 0
+        out = bp.nb[i, live] * D + bp.rev[i, live]  # [d_i] the messages i sent
+        change = np.log1p(rows_of(replay, out)) - np.log1p(rows_of(undamped, out))  # [d_i, L]
+        expected[i] = 0.5 * (np.maximum(change.max(1), 0.0) - np.minimum(change.min(1), 0.0)).max()
+    for name in ("idx", "val", "cnt", "residual"):  # the replay is the pass
+        np.testing.assert_array_equal(replay[name], getattr(bp, name))
+    assert 0 < bp.sent_cells < data.num_free  # some cells sent, some were skipped
+    np.testing.assert_allclose(bp.residual, expected, rtol=1e-9, atol=1e-12)
+    assert (bp.residual > 0).any() if damping else (bp.residual == 0).all()
 
 
 def test_backend_selection():

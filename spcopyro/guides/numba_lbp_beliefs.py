@@ -173,7 +173,7 @@ def _refresh(
     tset_a, tset_b = tsets[0], tsets[1]
     ulist = np.empty(2 * L, np.int64)
     refreshed = 0
-    cell_a, cell_b, sa, sb, na, nbb = -1, -1, 0, 0, 0, 0  # whose gather each side holds (-1: none)
+    cell_b, sa, sb, na, nbb = -1, 0, 0, 0, 0  # cell_b: whose gather the b side holds (-1: none)
     for a in range(N):
         if not 2.0 * drift[a] > tolerance:
             continue
@@ -185,13 +185,13 @@ def _refresh(
             prod_a, prod_b, logprod_a, logprod_b = prod_b, prod_a, logprod_b, logprod_a
             fac_a, fac_b, flog_a, flog_b = fac_b, fac_a, flog_b, flog_a
             tset_a, tset_b = tset_b, tset_a
-            cell_a, cell_b, sa, sb, na, nbb = a, cell_a, sb, sa, nbb, na
+            sa, sb, na, nbb = sb, sa, nbb, na
+            cell_b = -1  # the b side now holds an earlier cell's gather: a only grows
         else:
             sa = tick
             tick += 1
             na = _gather(a, idx, val, lg, cnt, nb, sa, mark_a, prod_a, logprod_a, tset_a,
                          fmark_a, fac_a, flog_a)  # fmt: skip
-            cell_a = a
         z = bsum[ra]
         for t in range(na):
             l = tset_a[t]

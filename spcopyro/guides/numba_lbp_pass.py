@@ -6,13 +6,13 @@ increment and decrement of each array's reference count (numba's runtime), which
 of the pass when the gather, the top-K selection and the change measure were functions.
 
 A sent cell's work, once each: the cavity's X(l) on T per message (kept for its candidates), the
-concepts outside T per cell (the same for its D messages; listed as far as a message's scan
-needs), and per message one loop over the undamped entries and one over the old ones giving the
-damped message with both its change ranges (``residual``, ``moved``); the old message is read in
-place and overwritten last. Only where the top-K cut drops entries after damping are the ranges
-measured again over what is kept. The arithmetic is that of the earlier layout operation for
-operation (its messages, ``moved`` and ``residual`` equal bit for bit, checked on 324 option
-combinations on 2026-12-06).
+concepts outside T per cell (listed in scan order, the same for its D messages), and per message
+one loop over the undamped entries and one over the old ones giving the damped message with both
+its change ranges (``residual``, ``moved``); the old message is read in place and overwritten
+last. Only where the top-K cut drops entries after damping are the ranges measured again over
+what is kept. The values are those of the earlier layout bit for bit (the ranges' min/max taken
+in another order; its messages, ``moved`` and ``residual`` equal on 324 option combinations on
+2026-12-06).
 """
 
 from __future__ import annotations
@@ -66,7 +66,7 @@ def _message_pass(
     ``row_drift [M + 1]`` the base rows' drift this pass (plus the coupling's). Scratch (never
     reset: stamps only grow): mark, omark [L] int64, fmark [D, L] int64, prod, oval [L],
     fac [D, L]."""
-    N, D = nb.shape
+    D = nb.shape[1]
     K = idx.shape[1]
     L = beta.shape[1]
     M = beta.shape[0] - 1
@@ -74,14 +74,14 @@ def _message_pass(
     tset = np.empty(L, np.int64)
     tbeta = np.empty(L)  # beta[r, tset[t]]
     xs = np.empty(L)  # the cavity's X(tset[t]) of the message being built
-    outl = np.empty(L, np.int64)  # the concepts outside T in scan order, found so far
+    outl = np.empty(L, np.int64)  # the concepts outside T in scan order
     top_l = np.empty(L + 2 * K, np.int64)  # the undamped candidates, the kept ones in front
     top_w = np.empty(L + 2 * K)
     new_l = np.empty(L + 2 * K, np.int64)  # the damped message's entries
     new_w = np.empty(L + 2 * K)
     tick = max(mark.max(), omark.max(), fmark.max()) + 1
     sent = 0
-    for p in range(N):
+    for p in range(len(order)):  # N cells in a run (a test replays a pass cell by cell)
         i = order[p]
         r = rows[i]
         bound = drift[i] + row_drift[r]
@@ -117,8 +117,12 @@ def _message_pass(
                 fac[d, l] = f
         for t in range(nt):
             tbeta[t] = beta[r, tset[t]]
-        nout = 0  # outl[:nout]: the concepts outside T met so far by the scan (the same for all d)
-        scan = 0  # the scan's next position (border's for row M, else concept order)
+        nout = 0  # outl[:nout]: the concepts outside T in scan order (the same for all d)
+        for o in range(L):  # by descending beta of row M, else in concept order
+            l = border[o] if r == M else o
+            if mark[l] != stamp:
+                outl[nout] = l
+                nout += 1
         worst = 0.0
         for d in range(D):
             j = nb[i, d]
@@ -140,20 +144,8 @@ def _message_pass(
                     top_w[nc] = w
                     nc += 1
             taken = 0
-            q = 0
-            while True:  # the concepts outside T, by descending beta (row M)
-                if q == nout:  # extend the list by the scan's next concept outside T
-                    while scan < L:
-                        l = border[scan] if r == M else scan
-                        scan += 1
-                        if mark[l] != stamp:
-                            outl[nout] = l
-                            nout += 1
-                            break
-                    if q == nout:
-                        break
+            for q in range(nout):  # the concepts outside T, by descending beta (row M)
                 l = outl[q]
-                q += 1
                 w = scale * beta[r, l]
                 if r == M and (w < threshold or w <= 0.0 or taken == K):
                     break  # descending order: every later one is smaller
