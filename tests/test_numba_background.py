@@ -1,18 +1,43 @@
 """The compiled sweep's background table (spcopyro.gibbs.numba_background): its centring of the
-logits equals the numpy steps it replaced to the bit, and a non-finite row is named."""
+logits equals the numpy steps it replaced to the bit, and a non-finite row is named; built on one
+row per footprint pattern (row_classes) it is the full table's rows to the bit, names the same
+cell, and the compiled sweep draws the same labels and globals with it as without it."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 import torch
-from gibbs_problems import config, random_problem
+from gibbs_problems import config, random_problem, tiny_grid
+from test_factored_counts import ROWS, observations
+
+from spcopyro.data import cell_counts
+from spcopyro.model import FactoredCounts, make_model_data
 
 pytest.importorskip("numba")
 
-from spcopyro.gibbs.numba_background import _centre_rows, background_table  # noqa: E402
+from spcopyro.data.factored_counts import SpreadSources  # noqa: E402
+from spcopyro.gibbs import numba_sweep  # noqa: E402
+from spcopyro.gibbs.numba_background import (  # noqa: E402
+    _centre_rows,
+    background_table,
+    row_classes,
+)
 from spcopyro.gibbs.sampler import init  # noqa: E402
 from spcopyro.gibbs.state import GibbsState  # noqa: E402
+
+SPREADS = [{"footprint_radius": 0.35}, {"footprint_radius": 0.35, "footprint_reach_share": 0.5}]
+"""Footprints whose weights repeat over the cells: without and with a reach share."""
+
+
+def _spread_data(rng: np.random.Generator, **preparation: object):
+    grid = tiny_grid(ROWS)
+    return make_model_data(grid, cell_counts(grid, observations(grid, rng), snap_distance=0.0,
+                                             **preparation))  # fmt: skip
+
+
+def _bits(array) -> np.ndarray:
+    return np.ascontiguousarray(np.asarray(array, dtype=np.float64)).view(np.uint64)
 
 
 def _numpy_centre(logits: np.ndarray, log_pi: np.ndarray) -> np.ndarray:
@@ -67,3 +92,79 @@ def test_background_table_names_the_row_a_nan_reaches():
     nan_pi = GibbsState(state.labels, log_pi, state.log_emissions)
     with pytest.raises(ValueError, match="not finite for the observed cell in row 0"):
         background_table(nan_pi, data, cfg)  # every row holds pi: the first is named
+
+
+@pytest.mark.parametrize("preparation", SPREADS)
+def test_one_row_per_footprint_pattern_is_the_full_table_to_the_bit(rng, preparation):
+    data = _spread_data(rng, **preparation)
+    classes = row_classes(data)
+    M, U = data.obs_cells.numel(), classes.first.size
+    assert 1 < U < M  # the weights repeat: fewer rows to build
+    assert classes.of.shape == (M + 1,) and classes.of[M] == U
+    assert (np.diff(classes.first) > 0).all() and (classes.of[classes.first] == np.arange(U)).all()
+    assert (classes.of[:M] <= np.maximum.accumulate(classes.of[:M])).all()  # by first cell
+    for name in ("images", "words"):  # a class's cells hold the same weighted counts
+        counts = data.modality(name).counts.numpy()
+        assert np.array_equal(counts, counts[classes.first][classes.of[:M]])
+    for cfg in (config(num_concepts=5), config(num_concepts=5, use_images=False)):
+        state = init(data, cfg, torch.Generator().manual_seed(4))
+        full = background_table(state, data, cfg)  # [M + 1, L + D]
+        reduced = background_table(state, data, cfg, classes)  # [U + 1, L + D]
+        assert reduced.shape == (U + 1, full.shape[1])
+        assert np.array_equal(_bits(full), _bits(reduced[classes.of]))
+
+
+def test_row_classes_only_where_every_modality_is_factored(rng):
+    data = _spread_data(rng, **SPREADS[0])
+    assert row_classes(data) is row_classes(data)  # cached per factored form
+    words = data.modality("words").counts.clone()
+    assert row_classes(data.with_counts("words", words)) is None  # a dense product's rows
+    assert row_classes(_spread_data(rng)) is None  # no footprint
+
+
+def test_one_row_per_pattern_names_the_same_cell(rng):
+    """A footprint whose counts are NaN spoils the rows of the cells it reaches: both tables name
+    the first of them (a class's first cell)."""
+    data = _spread_data(rng, **SPREADS[1])
+    images = data.modality("images")
+    spread = images.factored()
+    cell_of = np.repeat(np.arange(spread.indptr.size - 1), np.diff(spread.indptr))  # [nnz]
+    reached = [cell_of[spread.indices == s].min() for s in range(spread.sources.shape[0])]
+    spoilt_source = int(np.argmax(reached))  # the footprint whose first cell comes last
+    row = int(reached[spoilt_source])
+    sources = spread.sources.copy()
+    sources[spoilt_source, 0] = np.nan
+    spoilt = SpreadSources(spread.indptr, spread.indices, spread.weights, sources)
+    bound = FactoredCounts(spoilt, images.counts, images.counts._version)
+    modalities = tuple(m._replace(spread=bound) if m is images else m for m in data.modalities)
+    data = data._replace(modalities=modalities)
+    assert row > 0
+    cfg = config(num_concepts=5)
+    state = init(data, cfg, torch.Generator().manual_seed(4))
+    for classes in (None, row_classes(data)):
+        with pytest.raises(ValueError, match=f"observed cell in row {row} of data.obs_cells"):
+            background_table(state, data, cfg, classes)
+
+
+@pytest.mark.parametrize("preparation", SPREADS)
+def test_the_compiled_sweep_is_the_same_with_one_row_per_pattern(rng, preparation, monkeypatch):
+    from spcopyro.gibbs.numba_sweep import gibbs_sweep_numba
+
+    data = _spread_data(rng, **preparation)
+    cfg = config(num_concepts=5)
+    runs = []
+    for reduced in (True, False):
+        if not reduced:
+            monkeypatch.setattr(numba_sweep, "row_classes", lambda data: None)
+        state = init(data, cfg, torch.Generator().manual_seed(4))
+        generator = torch.Generator().manual_seed(7)
+        states = []
+        for _ in range(6):
+            state = gibbs_sweep_numba(state, data, cfg, generator)
+            states.append(state)
+        runs.append(states)
+    for with_classes, without in zip(*runs, strict=True):
+        assert torch.equal(with_classes.labels, without.labels)
+        assert np.array_equal(_bits(with_classes.log_pi), _bits(without.log_pi))
+        for a, b in zip(with_classes.log_emissions, without.log_emissions, strict=True):
+            assert np.array_equal(_bits(a), _bits(b))

@@ -31,9 +31,24 @@ differed between thread counts at 60, 85, 86, 100 and 105 rows. Maps of fewer th
 (docs/speed.md, "Threads"). Each product still takes log(phi)^T as a contiguous [K, L] copy (a
 single row: the transposed view), the operand the fits since b98aaa2 were seeded with: on one
 thread its bits differ from the view's (up to 1.4e-13), so the pinned outputs keep theirs.
+
+**One row per footprint pattern** (:class:`RowClasses`). Where every modality takes the factored
+product, a row of the table depends only on its cell's weights (which footprints, how much):
+cells of the same weights in every modality get the same row, to the bit (the same entries added
+in the same order, then the same centring and exp). A reach share (``footprint_reach_share``)
+observes every cell of a Voronoi cell with the same small weight, so on the map's own cells its
+rows repeat: 23,649 observed cells but 221 patterns on an open-plan synthetic house (seed 0,
+0.05 m, share 0.2 in rooms), 887 cells and 224 patterns at the default's 0.25 m. The compiled
+sweep (:mod:`~spcopyro.gibbs.numba_sweep`) therefore builds the table on one row per pattern
+(:func:`row_classes`) and points each cell to its pattern's row: the label draws read the same
+numbers, so the fit is the same bit for bit (docs/real_houses.md, "Voronoi cells within
+rooms", the stage-two share's cost, 2026-12-06).
 """
 
 from __future__ import annotations
+
+import functools
+from typing import NamedTuple
 
 import numpy as np
 import torch
@@ -41,10 +56,73 @@ from numba import njit
 
 from spcopyro._util.threads import one_blas_thread
 from spcopyro.config import SpCoConfig
+from spcopyro.data.factored_counts import SpreadSources
 from spcopyro.gibbs.state import GibbsState
 from spcopyro.model import ModelData
 
-__all__ = ["background_table"]
+__all__ = ["RowClasses", "background_table", "row_classes"]
+
+
+class RowClasses(NamedTuple):
+    """The observed cells grouped by their weights (module docstring, "One row per footprint
+    pattern"): U classes, numbered by their first cell."""
+
+    of: np.ndarray  # [M + 1] int32: each observed cell's class; M (pi's row) -> U
+    first: np.ndarray  # [U] int64: the first observed cell of each class, ascending
+    spreads: tuple[SpreadSources, ...]  # per modality: the weights of the rows ``first`` alone
+
+
+def row_classes(data: ModelData) -> RowClasses | None:
+    """The :class:`RowClasses` of ``data``'s observed cells where every modality's counts have a
+    factored form that pays (the table is then built from the weights alone); else None (a
+    dense product's rows are left as they are). Cached per factored form (by identity)."""
+    spreads = [modality.factored() for modality in data.modalities]
+    if not spreads or any(spread is None or not spread.pays() for spread in spreads):
+        return None
+    return _row_classes(tuple(spreads))
+
+
+@functools.lru_cache(maxsize=8)
+def _row_classes(spreads: tuple[SpreadSources, ...]) -> RowClasses:
+    """Cells m and m' share a class where every spread's row m holds the same footprints with
+    the same weights, bit for bit, as row m'."""
+    M = spreads[0].indptr.size - 1
+    keys = [_row_keys(spread) for spread in spreads]  # each [M, 1 + 2 width]
+    _, first, inverse = np.unique(np.concatenate(keys, axis=1), axis=0, return_index=True,
+                                  return_inverse=True)  # fmt: skip
+    order = np.argsort(first, kind="stable")  # [U] classes by their first cell
+    rank = np.empty(order.size, dtype=np.int64)
+    rank[order] = np.arange(order.size)
+    of = np.empty(M + 1, dtype=np.int32)  # [M + 1]
+    of[:M] = rank[inverse.reshape(-1)]
+    of[M] = order.size
+    first = np.ascontiguousarray(first[order], dtype=np.int64)  # [U]
+    return RowClasses(of, first, tuple(_rows_of(spread, first) for spread in spreads))
+
+
+def _row_keys(spread: SpreadSources) -> np.ndarray:
+    """[M, 1 + 2 width] int64 per row: its number of entries, their footprints and their
+    weights' bits, padded with -1 (width: the longest row's entries)."""
+    M = spread.indptr.size - 1
+    lengths = np.diff(spread.indptr)  # [M]
+    width = int(lengths.max()) if M else 0
+    keys = np.full((M, 1 + 2 * width), -1, dtype=np.int64)
+    keys[:, 0] = lengths
+    rows = np.repeat(np.arange(M), lengths)  # [nnz]
+    within = np.arange(rows.size) - spread.indptr[rows]  # [nnz] position inside its row
+    keys[rows, 1 + within] = spread.indices
+    keys[rows, 1 + width + within] = np.ascontiguousarray(spread.weights).view(np.int64)
+    return keys
+
+
+def _rows_of(spread: SpreadSources, rows: np.ndarray) -> SpreadSources:
+    """``spread``'s rows ``rows`` [U] alone, each with its entries in their order."""
+    lengths = np.diff(spread.indptr)[rows]  # [U]
+    indptr = np.zeros(rows.size + 1, dtype=np.int64)  # [U + 1]
+    np.cumsum(lengths, out=indptr[1:])
+    take = np.repeat(spread.indptr[rows] - indptr[:-1], lengths) + np.arange(indptr[-1])  # [nnz']
+    return SpreadSources(indptr, np.ascontiguousarray(spread.indices[take]),
+                         np.ascontiguousarray(spread.weights[take]), spread.sources)  # fmt: skip
 
 
 @njit(cache=True, nogil=True)
@@ -66,17 +144,27 @@ def _add_weighted_rows(
 
 
 def write_log_likelihood(
-    state: GibbsState, data: ModelData, config: SpCoConfig, out: torch.Tensor
+    state: GibbsState,
+    data: ModelData,
+    config: SpCoConfig,
+    out: torch.Tensor,
+    classes: RowClasses | None = None,
 ) -> None:
     """Write loglik [M, L] (module docstring) into ``out`` [M, L] (float64, contiguous), the
     modalities switched off in ``config`` left out; factored products where they pay. The
-    products run on one thread: the same bits on any thread count (module docstring)."""
+    products run on one thread: the same bits on any thread count (module docstring). With
+    ``classes`` (:func:`row_classes` of ``data``): the rows of ``classes.first`` alone, ``out``
+    [U, L]."""
     with one_blas_thread():
-        _write_log_likelihood(state, data, config, out)
+        _write_log_likelihood(state, data, config, out, classes)
 
 
 def _write_log_likelihood(
-    state: GibbsState, data: ModelData, config: SpCoConfig, out: torch.Tensor
+    state: GibbsState,
+    data: ModelData,
+    config: SpCoConfig,
+    out: torch.Tensor,
+    classes: RowClasses | None = None,
 ) -> None:
     out.zero_()
     for index, (modality, table) in enumerate(
@@ -87,6 +175,8 @@ def _write_log_likelihood(
         log_phi = table.detach().to(torch.float64)  # [L, K_m]
         factored = modality.factored()
         if factored is not None and factored.pays():
+            if classes is not None:  # the same entries of the classes' first rows alone
+                factored = classes.spreads[index]
             sources = torch.from_numpy(factored.sources)  # [S, K_m]
             per_source = torch.matmul(sources, _right_operand(log_phi, len(sources))).numpy()
             _add_weighted_rows(  # per_source [S, L]
@@ -132,23 +222,30 @@ def _centre_rows(logits: np.ndarray, log_pi: np.ndarray) -> int:
     return -1
 
 
-def background_table(state: GibbsState, data: ModelData, config: SpCoConfig) -> np.ndarray:
+def background_table(
+    state: GibbsState, data: ModelData, config: SpCoConfig, classes: RowClasses | None = None
+) -> np.ndarray:
     """[M + 1, L + D] the per-cell backgrounds B (module docstring), the D last columns 0: the
-    sentinel labels of missing neighbours.
+    sentinel labels of missing neighbours. With ``classes`` (:func:`row_classes` of ``data``):
+    [U + 1, L + D], row u the rows of class u's cells (``classes.of`` points each observed cell
+    to its row; the last row is pi's), the same numbers to the bit.
 
     Raises:
-        ValueError: log pi + loglik not finite in some row (naming it).
+        ValueError: log pi + loglik not finite in some row (naming the first observed cell whose
+            row it is).
     """
-    L, D, M = config.num_concepts, data.neighbours.shape[1], data.obs_cells.shape[0]
+    L, D = config.num_concepts, data.neighbours.shape[1]
+    M = data.obs_cells.shape[0] if classes is None else classes.first.shape[0]
     # The products run in torch (MKL), on one thread: numpy's OpenBLAS threads would fight
     # torch's OpenMP threads.
     logits_t = torch.empty(M + 1, L, dtype=torch.float64)  # [M + 1, L]
-    write_log_likelihood(state, data, config, logits_t[:M])
+    write_log_likelihood(state, data, config, logits_t[:M], classes)
     logits = logits_t.numpy()
     log_pi = np.ascontiguousarray(state.log_pi.detach().cpu().numpy(), dtype=np.float64)  # [L]
     row = _centre_rows(logits, log_pi)  # row M: pi's; NaN or +inf anywhere shows in a maximum
-    if row >= 0:
-        where = f"the observed cell in row {row} of data.obs_cells" if row < M else "pi"
+    if row >= 0:  # a class's first cell: the first cell of any class after it comes later
+        cell = row if classes is None or row >= M else int(classes.first[row])
+        where = f"the observed cell in row {cell} of data.obs_cells" if row < M else "pi"
         raise ValueError(
             f"log pi + observation log-likelihood is not finite for {where}: NaN or infinite "
             "values in GibbsState.log_pi / log_emissions or in the data's counts"

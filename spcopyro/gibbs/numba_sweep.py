@@ -17,7 +17,9 @@ B(i) being the cell's *background*: pi for a cell without observations, and for 
 the row :math:`B_{ml} = \exp(\log\pi_l + \mathrm{loglik}_{ml} - \max_{l'}(\cdot))` of one
 [M + 1, L] table computed per sweep (:mod:`spcopyro.gibbs.numba_background`: the loglik [M, L]
 of :func:`~spcopyro.gibbs.sweep.observation_log_likelihood` as one matrix product per modality,
-through the footprints' factored counts where they have one; row M holds pi).
+through the footprints' factored counts where they have one; row M holds pi; where every
+modality has them, one row per footprint pattern, which the cells of that pattern share:
+:func:`~spcopyro.gibbs.numba_background.row_classes`, the same draws to the bit).
 No cell of a colour block neighbours another cell of the same block, so updating the labels in
 place while looping over a block draws each cell of the block from its conditional given the
 other blocks: exactly the reference's block update. Every cell then uses the reference's
@@ -71,7 +73,7 @@ import torch
 from numba import njit
 
 from spcopyro.config import SpCoConfig
-from spcopyro.gibbs.numba_background import background_table
+from spcopyro.gibbs.numba_background import background_table, row_classes
 from spcopyro.gibbs.numba_globals import (
     PriorDraws,
     abandon_prior_draws,
@@ -219,9 +221,11 @@ def _sample_labels_array(
     layout = label_plan(plan, data)
     tilt = _neighbour_tilt(config, D)
     labels = _extended_labels(state.labels, D, config)
-    background = background_table(state, data, config)
+    classes = row_classes(data)  # one row per footprint pattern, where the rows repeat
+    background = background_table(state, data, config, classes)  # [M + 1 or U + 1, L + D]
+    rows = layout.rows if classes is None else classes.of[layout.rows]  # [N] int32
     agreements = label_sweep_kernel(D)(
-        labels, layout.order, layout.neighbours, layout.rows, layout.segments, layout.modes,
+        labels, layout.order, layout.neighbours, rows, layout.segments, layout.modes,
         layout.earlier,
         background, tilt, rng,
     )  # fmt: skip
