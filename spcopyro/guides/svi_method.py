@@ -28,6 +28,7 @@ import pyro.optim
 import torch
 
 from spcopyro._util.messages import setting
+from spcopyro._util.number_checks import is_number
 from spcopyro.config import SpCoConfig
 from spcopyro.guides.adam import plain_adam
 from spcopyro.guides.cavi_method import output_from_variational
@@ -126,8 +127,7 @@ class SVIOptions:
             return ValueError(f"SVIOptions.{name}={getattr(self, name)!r}: {why}")
 
         def positive(value: object) -> bool:
-            ok = isinstance(value, (int, float)) and not isinstance(value, bool)
-            return ok and math.isfinite(value) and value > 0
+            return is_number(value) and math.isfinite(value) and value > 0
 
         if not positive(self.learning_rate):
             raise bad("learning_rate", "must be a finite number > 0")
@@ -145,10 +145,7 @@ class SVIOptions:
         ):
             raise bad("anneal_iterations", "must be None or an integer >= 0")
         smoothing = self.label_smoothing
-        if smoothing is not None and not (
-            isinstance(smoothing, (int, float)) and not isinstance(smoothing, bool)
-            and 0 < smoothing < 1
-        ):  # fmt: skip
+        if smoothing is not None and not (is_number(smoothing) and 0 < smoothing < 1):
             raise bad("label_smoothing", "must be None or lie in (0, 1)")
         if self.bound not in ("prior", "zero"):
             raise bad("bound", "must be 'prior' or 'zero'")
