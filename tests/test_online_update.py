@@ -329,7 +329,9 @@ def test_a_patch_of_with_sample_marginals_reaches_an_update(house, saved, monkey
 def test_an_update_of_a_fit_without_the_reach_share_names_the_flag(tmp_path, house, capsys):
     """A default fit saved before preset coarse's reach share (share 0, no door width), updated
     under the default: the refusal names ``--footprint-reach-share 0``, which updates it; a
-    share given on the command line gets no hint (cli.fit_update.reach_share_hint)."""
+    share given on the command line gets no hint (cli.fit_update.reach_share_hint). Refused
+    before the house's summary and the 'updating' line are printed (cli.fit_update.check_update):
+    they read as a fit begun."""
     save_house(house, tmp_path / "all")
     data = str(tmp_path / "all" / "synthetic")
     first, again = tmp_path / "first", tmp_path / "again"
@@ -339,8 +341,9 @@ def test_an_update_of_a_fit_without_the_reach_share_names_the_flag(tmp_path, hou
     capsys.readouterr()
     hint = "pass --footprint-reach-share 0 to update it as it was fitted"
     assert main(["fit", data, "--out", str(again), "--update", str(first), *flags]) == 2
-    err = capsys.readouterr().err
+    out, err = capsys.readouterr()
     assert "footprint_reach_share: saved fit 0.0, this run 0.2" in err and hint in err
+    assert out == "", out  # no summary, no "updating" line
     assert not again.exists()
     given = ["--footprint-reach-share", "0.3", *flags]
     assert main(["fit", data, "--out", str(again), "--update", str(first), *given]) == 2

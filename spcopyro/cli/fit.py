@@ -57,7 +57,7 @@ from spcopyro.cli.fit_settings import (
 )
 from spcopyro.cli.fit_summary import data_line, inference_line, model_line
 from spcopyro.cli.fit_update import (
-    reach_share_hint,
+    check_update,
     relative_records,
     report_update,
     update_settings,
@@ -210,6 +210,12 @@ def _fit_staged(job: FitJob) -> int:
 
     args, house, settings, options = job.args, job.house, job.settings, job.options
     config = settings.model
+    saved = None
+    if args.update is not None:  # refused before the summary: a refusal prints none of it
+        from spcopyro.results.result import SpCoResult
+
+        saved = SpCoResult.load(args.update)
+        check_update(args, saved, house, settings)
     # The config's warnings are logged by prepare_model_data (main prints them once); the
     # fit's own counts say what is left out (once), under the run's feature scaling.
     print(_summary(house, warn=False, preparation=settings.data))
@@ -228,11 +234,7 @@ def _fit_staged(job: FitJob) -> int:
         saved_fit = "fit" if keeps_finished_fit(args) else "chains"
         print(f"resuming         the {saved_fit} saved in {args.resume}")
     init = args.init
-    saved = None
-    if args.update is not None:
-        from spcopyro.results.result import SpCoResult
-
-        saved = SpCoResult.load(args.update)
+    if saved is not None:
         steps = plural(len(saved.trace.objective), "sweep" if saved.method == "gibbs" else
                        "iteration")  # fmt: skip
         print(f"updating         the {saved.method} fit in {args.update} ({steps}) with all "
@@ -332,22 +334,15 @@ def _fit(
             estimate = preset_inference(args.preset).get("point_estimate", "map-visited")
             estimate = estimate if args.marginal_samples > 0 else "map-visited"
         elif saved is not None:
-            from spcopyro.robot.online import UpdateMismatchError, fit_update
+            from spcopyro.robot.online import fit_update
 
-            chains = _chain_count(args)
-            try:
-                chain_results = fit_update(
-                    saved, house, settings, method=args.method, options=options,
-                    sweeps=args.sweeps, seeds=[args.seed + k for k in range(chains)],
-                    source=source, threads=args.threads,
-                    marginal_samples=args.marginal_samples,
-                    point_estimate=args.point_estimate, where=args.update,
-                )  # fmt: skip
-            except UpdateMismatchError as error:  # check_compatible's refusal: the flag mending it
-                hint = reach_share_hint(args, saved, settings)
-                if hint:
-                    raise UpdateMismatchError(f"{error}{hint}", error.problems) from error
-                raise
+            chains = _chain_count(args)  # checked against saved before the summary: check_update
+            chain_results = fit_update(
+                saved, house, settings, method=args.method, options=options,
+                sweeps=args.sweeps, seeds=[args.seed + k for k in range(chains)],
+                source=source, threads=args.threads, marginal_samples=args.marginal_samples,
+                point_estimate=args.point_estimate, where=args.update,
+            )  # fmt: skip
             this_data = chain_results[0].provenance.get("source", {})  # to tell unchanged data
             this_sha = this_data.get("data_sha256") if isinstance(this_data, dict) else None
             relative_records(chain_results, job.staged.out)  # update_of.fit: relative to OUT

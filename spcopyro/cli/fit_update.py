@@ -1,7 +1,8 @@
 """``spcopyro fit --update``'s own lines: its settings after a refined fit
 (:func:`update_settings`), the lines it prints (:func:`report_update`), its record of the
-saved fit relative to OUT (:func:`relative_records`) and the hint its refusal of a fit saved
-before the reach share became the default gets (:func:`reach_share_hint`)."""
+saved fit relative to OUT (:func:`relative_records`), its refusal before anything is printed
+(:func:`check_update`) and the hint that refusal of a fit saved before the reach share became
+the default gets (:func:`reach_share_hint`)."""
 
 from __future__ import annotations
 
@@ -18,9 +19,12 @@ if TYPE_CHECKING:
     import argparse
 
     from spcopyro.config import SpCoSettings
+    from spcopyro.data import House
     from spcopyro.results.result import SpCoResult
 
-__all__ = ["reach_share_hint", "relative_records", "report_update", "update_settings"]
+__all__ = [
+    "check_update", "reach_share_hint", "relative_records", "report_update", "update_settings"
+]  # fmt: skip
 
 
 def relative_records(results: Sequence[SpCoResult], out: Path) -> None:
@@ -77,6 +81,25 @@ def reach_share_hint(args: argparse.Namespace, saved: SpCoResult, settings: SpCo
         f"coarse's default before 2026-12-06) and this run's is --preset {args.preset}'s: pass "
         "--footprint-reach-share 0 to update it as it was fitted"
     )
+
+
+def check_update(
+    args: argparse.Namespace, saved: SpCoResult, house: House, settings: SpCoSettings
+) -> None:
+    """:func:`spcopyro.robot.online.check_compatible`'s refusal of ``--update``: ``house`` and
+    ``settings``, this run's, against ``saved``, the fit in ``args.update``, with
+    :func:`reach_share_hint`'s flag where it mends the refusal. Run before fit prints the
+    house's summary, so that a refused update prints none of it (the same check, on the same
+    inputs, as the one :func:`~spcopyro.robot.online.fit_update` runs, which then passes)."""
+    from spcopyro.robot.online import UpdateMismatchError, check_compatible
+
+    try:
+        check_compatible(saved, house, settings, str(args.update))
+    except UpdateMismatchError as error:  # the flag mending it, where one does
+        hint = reach_share_hint(args, saved, settings)
+        if hint:
+            raise UpdateMismatchError(f"{error}{hint}", error.problems) from error
+        raise
 
 
 def report_update(record: dict[str, object], where: str, data_sha256: object = None) -> None:
