@@ -333,10 +333,10 @@ def _fit(
             refine_sweeps = len(result.trace.objective)
             estimate = preset_inference(args.preset).get("point_estimate", "map-visited")
             estimate = estimate if args.marginal_samples > 0 else "map-visited"
-        elif saved is not None:
+        elif saved is not None:  # checked against the run before the summary: check_update
             from spcopyro.robot.online import fit_update
 
-            chains = _chain_count(args)  # checked against saved before the summary: check_update
+            chains = _chain_count(args)
             chain_results = fit_update(
                 saved, house, settings, method=args.method, options=options,
                 sweeps=args.sweeps, seeds=[args.seed + k for k in range(chains)],
