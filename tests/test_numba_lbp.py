@@ -176,6 +176,21 @@ def excesses(bp) -> np.ndarray:
     return dense
 
 
+def _passes_until_one_skips(damping: float, support: int, threshold: float):
+    """(data, cfg, state, bp) of the small house after 3 outer iterations and then single
+    passes under the same globals until the active set skips a cell (1-10 passes)."""
+    data, cfg = small_house()
+    options = LBPOptions(backend="numba", damping=damping, passes=1, support=support,
+                         threshold=threshold, active_tolerance=1e-2)  # fmt: skip
+    state, _, _ = iterate(data, cfg, options, 3)
+    bp = state.bp
+    for _ in range(20):
+        bp.run(state.factors, cfg.gamma)
+        if bp.sent_cells < data.num_free:
+            break
+    return data, cfg, state, bp
+
+
 @needs_numba
 @pytest.mark.parametrize("damping", [0.0, 0.5])
 @pytest.mark.parametrize("support", [0, 3])
@@ -185,15 +200,7 @@ def test_each_message_records_how_far_it_moved(damping, support):
     range taken with 1 in it (0 for a skipped sender, whose message stays), on each of the
     pass's paths: undamped and damped, with a cap (support 3: the top-K cut after damping) and
     without; and the logs stored with the message, log(1 + rho)."""
-    data, cfg = small_house()
-    options = LBPOptions(backend="numba", damping=damping, passes=1, support=support,
-                         threshold=1e-3, active_tolerance=1e-2)  # fmt: skip
-    state, _, _ = iterate(data, cfg, options, 3)
-    bp = state.bp
-    for _ in range(20):  # the same globals until the active set skips a cell (1-10 passes)
-        bp.run(state.factors, cfg.gamma)
-        if bp.sent_cells < data.num_free:
-            break
+    data, cfg, state, bp = _passes_until_one_skips(damping, support, threshold=1e-3)
     before = excesses(bp)
     bp.run(state.factors, cfg.gamma)
     after = excesses(bp)
@@ -220,16 +227,8 @@ def test_each_cell_records_how_far_damping_left_its_messages(damping, support):
     cell by cell in its order (which reproduces it), each sender also sent undamped from a copy.
     On the damped paths with a cap (support 3: the top-K cut after damping, where the range is
     measured again over what is kept) and without."""
-    data, cfg = small_house()
     # threshold 3e-2: damping takes some undamped entries below it (their own path)
-    options = LBPOptions(backend="numba", damping=damping, passes=1, support=support,
-                         threshold=3e-2, active_tolerance=1e-2)  # fmt: skip
-    state, _, _ = iterate(data, cfg, options, 3)
-    bp = state.bp
-    for _ in range(20):  # the same globals until the active set skips a cell (1-10 passes)
-        bp.run(state.factors, cfg.gamma)
-        if bp.sent_cells < data.num_free:
-            break
+    data, cfg, state, bp = _passes_until_one_skips(damping, support, threshold=3e-2)
     replay = {name: getattr(bp, name).copy() for name in MESSAGES}
     bp.run(state.factors, cfg.gamma)  # the same globals: no base row drifted
     beta, _, border, bsum, _ = bp._tables
