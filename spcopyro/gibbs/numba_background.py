@@ -85,34 +85,26 @@ def row_classes(data: ModelData) -> RowClasses | None:
 @functools.lru_cache(maxsize=8)
 def _row_classes(spreads: tuple[SpreadSources, ...]) -> RowClasses:
     """Cells m and m' share a class where every spread's row m holds the same footprints with
-    the same weights, bit for bit, as row m'."""
+    the same weights, bit for bit, as row m': one dict keyed on the rows' bytes, each new key
+    numbered as it comes (the grouping :func:`~spcopyro.data.factored_counts.spread_sources`
+    gives the observations' footprints), so the classes come numbered by their first cell."""
     M = spreads[0].indptr.size - 1
-    keys = [_row_keys(spread) for spread in spreads]  # each [M, 1 + 2 width]
-    _, first, inverse = np.unique(np.concatenate(keys, axis=1), axis=0, return_index=True,
-                                  return_inverse=True)  # fmt: skip
-    order = np.argsort(first, kind="stable")  # [U] classes by their first cell
-    rank = np.empty(order.size, dtype=np.int64)
-    rank[order] = np.arange(order.size)
+    rows = [(spread.indptr.tolist(), spread.indices, spread.weights) for spread in spreads]
+    class_of: dict[tuple[tuple[bytes, bytes], ...], int] = {}  # per modality: row m's entries
     of = np.empty(M + 1, dtype=np.int32)  # [M + 1]
-    of[:M] = rank[inverse.reshape(-1)]
-    of[M] = order.size
-    first = np.ascontiguousarray(first[order], dtype=np.int64)  # [U]
+    first: list[int] = []  # [U]
+    for m in range(M):
+        key = tuple(
+            (indices[at[m] : at[m + 1]].tobytes(), weights[at[m] : at[m + 1]].tobytes())
+            for at, indices, weights in rows
+        )
+        u = class_of.setdefault(key, len(class_of))
+        if u == len(first):  # a new class: m is its first cell
+            first.append(m)
+        of[m] = u
+    of[M] = len(first)
+    first = np.asarray(first, dtype=np.int64)  # [U] ascending
     return RowClasses(of, first, tuple(_rows_of(spread, first) for spread in spreads))
-
-
-def _row_keys(spread: SpreadSources) -> np.ndarray:
-    """[M, 1 + 2 width] int64 per row: its number of entries, their footprints and their
-    weights' bits, padded with -1 (width: the longest row's entries)."""
-    M = spread.indptr.size - 1
-    lengths = np.diff(spread.indptr)  # [M]
-    width = int(lengths.max()) if M else 0
-    keys = np.full((M, 1 + 2 * width), -1, dtype=np.int64)
-    keys[:, 0] = lengths
-    rows = np.repeat(np.arange(M), lengths)  # [nnz]
-    within = np.arange(rows.size) - spread.indptr[rows]  # [nnz] position inside its row
-    keys[rows, 1 + within] = spread.indices
-    keys[rows, 1 + width + within] = np.ascontiguousarray(spread.weights).view(np.int64)
-    return keys
 
 
 def _rows_of(spread: SpreadSources, rows: np.ndarray) -> SpreadSources:
