@@ -11,7 +11,7 @@ with the merge move timed separately. Reported per run:
   (the highest-log-joint state visited, and the VI / Binder point estimates of
   :mod:`spcopyro.results.point_estimate` over ~50 label maps of the second half, their speck
   concepts joined to others as ``spcopyro fit``'s ``vi`` and ``binder`` join them: told by the
-  utterances heard at each cell, :func:`spcopyro.results.posterior_means.words_per_cell`; the cells
+  words heard at each cell, :func:`spcopyro.results.posterior_means.words_per_cell`; the cells
   and specks joined are reported too);
 * the adjusted Rand index of each of those maps against the ground truth (where the house has
   one);

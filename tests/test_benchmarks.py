@@ -828,7 +828,7 @@ def test_merge_moves_warms_up_before_the_timed_chains(script, tmp_path, keep_tor
 
 def test_merge_moves_estimates_join_specks_as_fit_does(script, keep_torch_threads):
     """The VI / Binder estimates are those ``spcopyro fit`` reports: its specks joined to other
-    clusters, told by the utterances heard at each cell (``words_per_cell``, as fit's
+    clusters, told by the words heard at each cell (``words_per_cell``, as fit's
     ``with_posterior_means`` passes). The benchmark called the raw point estimate without them,
     so its estimates kept the speck concepts that fit's ``vi`` joins."""
     import numpy as np

@@ -33,7 +33,7 @@ def print_concepts(
     (posterior means) and the distinctive ones with their lifts
     (:mod:`spcopyro.results.concept_words`), or that no word was heard there. Specks (concepts
     under :data:`~spcopyro.results.concept_words.SPECK_SHARE` of the free cells where fewer
-    than :data:`~spcopyro.results.concept_words.SPECK_WORDS` utterances were heard,
+    than :data:`~spcopyro.results.concept_words.SPECK_WORDS` words were heard,
     :func:`~spcopyro.results.concept_words.is_speck`: a doorway or corner cell the Potts field
     holds weakly, docs/real_houses.md) share one line at the end, with how
     much of the posterior holds them (:func:`~spcopyro.results.specks.support_text`).

@@ -185,7 +185,7 @@ def with_sample_marginals(
     """``output`` with the label frequencies of its samples from the second half of the sweeps
     as its marginals (unchanged if it kept none there), reporting ``point_estimate`` over them
     (:func:`spcopyro.results.point_estimate.with_point_estimate`; ``vi`` and ``binder`` without
-    specks, told by the utterances ``data`` counts at each cell, footprint included: its word
+    specks, told by the words ``data`` counts at each cell, footprint included: its word
     counts divided by ``settings.data.word_scaling``, the units of ``result.heard``), and a
     sampler's pi and emissions as their posterior means (the model ``settings.model``): given
     the point estimate's labels when it is one, else averaged over those samples

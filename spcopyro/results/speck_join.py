@@ -67,8 +67,7 @@ def check_cell_words(cell_words: np.ndarray, cells: int) -> np.ndarray:
     words = np.asarray(cell_words, dtype=np.float64)
     if words.shape != (cells,) or not np.all(np.isfinite(words)) or np.any(words < 0):
         raise ValueError(
-            f"cell_words must be [{cells}] finite counts >= 0 (the words heard at each "
-            "cell), "
+            f"cell_words must be [{cells}] finite counts >= 0 (the words heard at each cell), "
             f"got shape {words.shape}"
         )
     return words
