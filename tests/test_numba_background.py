@@ -1,7 +1,8 @@
 """The compiled sweep's background table (spcopyro.gibbs.numba_background): its centring of the
 logits equals the numpy steps it replaced to the bit, and a non-finite row is named; built on one
 row per footprint pattern (row_classes) it is the full table's rows to the bit, names the same
-cell, and the compiled sweep draws the same labels and globals with it as without it."""
+cell, and the compiled sweep draws the same labels and globals with it as without it; its
+vectorised grouping gives the arrays of the per-cell dict loop it replaced, to the bit."""
 
 from __future__ import annotations
 
@@ -19,7 +20,10 @@ pytest.importorskip("numba")
 from spcopyro.data.factored_counts import SpreadSources  # noqa: E402
 from spcopyro.gibbs import numba_sweep  # noqa: E402
 from spcopyro.gibbs.numba_background import (  # noqa: E402
+    RowClasses,
     _centre_rows,
+    _row_classes,
+    _rows_of,
     background_table,
     row_classes,
 )
@@ -170,3 +174,116 @@ def test_the_compiled_sweep_is_the_same_with_one_row_per_pattern(rng, preparatio
         assert np.array_equal(_bits(with_classes.log_pi), _bits(without.log_pi))
         for a, b in zip(with_classes.log_emissions, without.log_emissions, strict=True):
             assert np.array_equal(_bits(a), _bits(b))
+
+
+def _dict_row_classes(spreads: tuple[SpreadSources, ...]) -> RowClasses:
+    """_row_classes as it was before its vectorised grouping: a per-cell loop over one dict keyed
+    on the rows' bytes, each new key numbered as it comes (the reference)."""
+    M = spreads[0].indptr.size - 1
+    rows = [(spread.indptr.tolist(), spread.indices, spread.weights) for spread in spreads]
+    class_of: dict[tuple[tuple[bytes, bytes], ...], int] = {}  # per modality: row m's entries
+    of = np.empty(M + 1, dtype=np.int32)  # [M + 1]
+    first: list[int] = []  # [U]
+    for m in range(M):
+        key = tuple(
+            (indices[at[m] : at[m + 1]].tobytes(), weights[at[m] : at[m + 1]].tobytes())
+            for at, indices, weights in rows
+        )
+        u = class_of.setdefault(key, len(class_of))
+        if u == len(first):  # a new class: m is its first cell
+            first.append(m)
+        of[m] = u
+    of[M] = len(first)
+    first = np.asarray(first, dtype=np.int64)  # [U] ascending
+    return RowClasses(of, first, tuple(_rows_of(spread, first) for spread in spreads))
+
+
+def _assert_same_classes(spreads: tuple[SpreadSources, ...]) -> RowClasses:
+    """The vectorised grouping (uncached) against the dict loop: the same arrays, dtypes and
+    weights' bits."""
+    got, expected = _row_classes.__wrapped__(spreads), _dict_row_classes(spreads)
+    for name in ("of", "first"):
+        a, b = getattr(got, name), getattr(expected, name)
+        assert a.dtype == b.dtype and a.shape == b.shape and np.array_equal(a, b), name
+    for a, b in zip(got.spreads, expected.spreads, strict=True):
+        assert a.sources is b.sources
+        for name in ("indptr", "indices", "weights"):
+            x, y = getattr(a, name), getattr(b, name)
+            assert x.dtype == y.dtype and x.tobytes() == y.tobytes(), name
+    return got
+
+
+def _spread(rows: list[list[tuple[int, float]]], num_sources: int = 4) -> SpreadSources:
+    """A SpreadSources of the given rows of (footprint, weight) entries, in their order."""
+    lengths = [len(row) for row in rows]
+    indptr = np.concatenate([[0], np.cumsum(lengths)]).astype(np.int64)  # [M + 1]
+    entries = [entry for row in rows for entry in row]
+    indices = np.array([s for s, _ in entries], dtype=np.int64)  # [nnz]
+    weights = np.array([w for _, w in entries], dtype=np.float64)  # [nnz]
+    return SpreadSources(indptr, indices, weights, np.ones((num_sources, 3)))
+
+
+_NAN = np.float64(np.nan)
+_OTHER_NAN = np.uint64(0x7FF8000000000001).view(np.float64)  # a NaN of other bits
+ROW_CASES = {
+    "ties": [[(0, 0.5), (2, 0.25)], [(1, 1.0)], [(0, 0.5), (2, 0.25)], [(1, 1.0)], [(3, 0.1)],
+             [(0, 0.5), (2, 0.25)], [(2, 0.25), (0, 0.5)]],  # the same entries in another order
+    "all distinct": [[(s, 0.1 * (s + 1))] for s in range(4)] + [[(0, 0.1), (1, 0.2)]],
+    "all identical": [[(1, 0.5), (3, 0.75)]] * 6,
+    "one row": [[(2, 0.3)]],
+    "no rows": [],
+    "empty rows": [[], [(0, 0.0)], [], [(0, 0.0), (1, 0.5)], [(0, 0.0)]],  # padding is not a tie
+    "signed zeros": [[(1, 0.0)], [(1, -0.0)], [(1, 0.0)], [(1, -0.0)], [(1, 0.0), (2, -0.0)]],
+    "NaNs": [[(0, _NAN)], [(0, _OTHER_NAN)], [(0, _NAN)], [(0, 1.0)], [(0, _OTHER_NAN)],
+             [(1, _NAN), (0, _NAN)]],
+}  # fmt: skip
+"""Rows for the grouping: the dict's keys are bytes, so 0.0 and -0.0 are two keys, and a NaN
+ties with a NaN of the same bits alone (a float dict key would tie neither way)."""
+
+
+@pytest.mark.parametrize("case", ROW_CASES)
+def test_row_classes_are_the_dict_loops_to_the_bit(case):
+    rows = ROW_CASES[case]
+    classes = _assert_same_classes((_spread(rows),))
+    assert classes.of.shape == (len(rows) + 1,)
+    if case == "signed zeros":
+        assert classes.of[:-1].tolist() == [0, 1, 0, 1, 2]
+    if case == "NaNs":
+        assert classes.of[:-1].tolist() == [0, 1, 0, 2, 1, 3]
+    if case == "empty rows":
+        assert classes.of[:-1].tolist() == [0, 1, 0, 2, 1]
+
+
+def test_row_classes_of_two_modalities_are_the_dict_loops(rng):
+    """Cells tie in one modality but not the other, and rows of many lengths: random rows over
+    a few patterns each, so the keys of the two modalities' combinations repeat."""
+    patterns = []  # 7 rows of 0 to 8 entries
+    for n in (0, 1, 2, 3, 5, 8, 2):
+        sources = rng.choice(9, size=n, replace=False).tolist()
+        patterns.append(list(zip(sources, rng.choice([0.25, 0.5, 1.0], size=n), strict=True)))
+    images = _spread([patterns[i] for i in rng.integers(0, 7, size=300)], num_sources=9)
+    words = _spread([patterns[i] for i in rng.integers(0, 3, size=300)], num_sources=9)
+    classes = _assert_same_classes((images, words))
+    assert 7 < classes.first.size < 300
+
+
+@pytest.mark.parametrize("preparation", SPREADS)
+def test_row_classes_of_spread_data_are_the_dict_loops(rng, preparation):
+    data = _spread_data(rng, **preparation)
+    _assert_same_classes(tuple(modality.factored() for modality in data.modalities))
+
+
+def test_row_classes_of_the_embedded_house_are_the_dict_loops():
+    """The data of a real fit: the embedded house under the default preset (``coarse``)."""
+    from spcopyro.config import DEFAULT_PRESET, preset
+    from spcopyro.data.model_grid import model_house
+    from spcopyro.fit.house import prepare_model_data
+    from spcopyro.synthetic import HouseSpec, make_house
+
+    settings = preset(DEFAULT_PRESET)
+    house = model_house(make_house(seed=0, spec=HouseSpec.embedded()), settings.data.cell_size)
+    _, data = prepare_model_data(house, settings)
+    spreads = tuple(modality.factored() for modality in data.modalities)
+    assert all(spread is not None and spread.pays() for spread in spreads)
+    classes = _assert_same_classes(spreads)
+    assert 1 < classes.first.size < data.obs_cells.numel()  # some cells' rows repeat
