@@ -395,6 +395,7 @@ class SpCoResult:
             posterior, weights, sizes, word=key, prior_name=prior,
             cell_area=self.grid.resolution**2, region=region,
             connectivity=self.config.connectivity, words_modelled=words_modelled(self),
+            heard=self.heard(concept),  # None: unknown, a speck judged by its size alone
         )  # fmt: skip
         if self.word_totals is not None and self.word_totals[word_index(self.vocabulary, key)] == 0:
             warnings = (

@@ -46,13 +46,16 @@ extent.
 Answers to treat with care carry warnings (:attr:`WhereAnswer.warnings`): the best concept's
 posterior odds over the runner-up below :data:`ODDS_WARNING`, the word's Bayes factor for the
 best concept (how much hearing it changes that concept's odds from the prior) below
-:data:`EVIDENCE_WARNING`, a region smaller than :data:`SMALL_REGION_FRACTION` of the free
-cells, or a region strewn over the map in pieces each smaller than that (see
-:func:`answer_warnings`). The last one is for a disordered map: room1dk5 fitted with the
-released code's values (``--preset original-code``, 1000 sweeps) labels the house with 120
-concepts of 120-180 cells each, salt and pepper; "where is the bedroom?" answered with 144 cells
-in 128 pieces (the largest 6 cells) over the whole house, at odds 5.5 and Bayes factor 7.5, and
-nothing warned (its 0.77% of the free cells is no speck).
+:data:`EVIDENCE_WARNING`, a region that is a speck by the rule of the concept listing and the
+map's legend (:func:`~spcopyro.results.concept_words.is_speck`: under 0.5 % of the free cells
+and under 0.1 words heard in it; by size alone, and saying so, for a result that does not know
+its words heard), or a region strewn over the map in pieces each smaller than
+:data:`SMALL_REGION_FRACTION` of the free cells (see :func:`answer_warnings`). The last one is
+for a disordered map: room1dk5 fitted with the released code's values (``--preset
+original-code``, 1000 sweeps) labels the house with 120 concepts of 120-180 cells each, salt and
+pepper; "where is the bedroom?" answered with 144 cells in 128 pieces (the largest 6 cells) over
+the whole house, at odds 5.5 and Bayes factor 7.5, and nothing warned (its 0.77% of the free
+cells is no speck).
 """
 
 from __future__ import annotations
@@ -63,6 +66,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from spcopyro._util.messages import plural, setting, shown_count
+from spcopyro.results.concept_words import SPECK_SHARE, SPECK_WORDS, is_speck
 
 __all__ = [
     "DEFAULT_WHERE_PRIOR",
@@ -123,10 +127,12 @@ flagged as coming from the prior (the region's size, or pi) rather than from the
 bound as :data:`ODDS_WARNING`. On that fit: 15-261 (area prior); under paper-dp about 1."""
 
 SMALL_REGION_FRACTION = 0.005
-"""An answer's region holding fewer than this share of the free cells is flagged as a speck:
-0.5% is the size under which :func:`spcopyro.figures.plotting.plot_semantic_map` writes no label on
-a region (93 cells, 0.23 m^2, in room1dk5; 18 cells in the synthetic house, whose smallest room
-holds 13%)."""
+"""A share of the free cells: a region strewn over the map in pieces each holding fewer than
+this is flagged (:func:`answer_warnings`), and :func:`spcopyro.figures.plotting.plot_semantic_map`
+writes no label on a region under it (93 cells, 0.23 m^2, in room1dk5; 18 cells in the
+synthetic house, whose smallest room holds 13%). Whether the answer's region is a speck is
+:func:`~spcopyro.results.concept_words.is_speck`'s to say (its
+:data:`~spcopyro.results.concept_words.SPECK_SHARE` is the same 0.5%, and words heard count)."""
 
 
 SHARED_ANSWER_P = 0.5
@@ -285,6 +291,7 @@ def answer_warnings(
     region: np.ndarray | None = None,
     connectivity: int = 4,
     words_modelled: bool = True,
+    heard: float | None = None,
 ) -> tuple[str, ...]:
     r"""The warnings of the answer argmax ``posterior`` (see :class:`WhereAnswer`).
 
@@ -301,6 +308,9 @@ def answer_warnings(
         words_modelled: False for a fit that did not model its words (``use_words`` off,
             :func:`~spcopyro.results.concept_words.words_modelled`): every w_l is the prior's,
             so the posterior is the prior whatever the word, which the first warning says.
+        heard: the words heard in the best concept's cells (:meth:`SpCoResult.heard
+            <spcopyro.results.result.SpCoResult.heard>`: the model's counts over
+            ``word_scaling``); None where the result does not know them.
 
     With c the best concept and c' the runner-up, it warns when
 
@@ -309,12 +319,20 @@ def answer_warnings(
         \frac{p(c \mid S)}{p(c' \mid S)} < \text{ODDS\_WARNING}, \qquad
         K = \frac{p(c \mid S) / (1 - p(c \mid S))}{p(c) / (1 - p(c))}
           < \text{EVIDENCE\_WARNING}, \qquad
-        n_c < \text{SMALL\_REGION\_FRACTION} \cdot N,
+        n_c < \text{SPECK\_SHARE} \cdot N \;\text{and}\; h_c < \text{SPECK\_WORDS},
 
-    when the region (not a speck itself) lies in several pieces, each under
-    SMALL_REGION_FRACTION * N cells (specks strewn over the map, not a place), and when one
-    concept labels the whole map (every word points there); first of all, when the fit did not
-    model its words.
+    the last the rule of :func:`~spcopyro.results.concept_words.is_speck` (h_c the words heard
+    in c's cells), by which the concept listing, the map's legend and ``concepts.json`` call a
+    concept a speck, so that ``where`` calls the same concepts specks they do. A result that does
+    not know h_c (``heard`` None) is judged by the size alone, and the warning says so. A region
+    as small where words were heard gets no warning: it is a small place (a toilet or a closet
+    holds under 0.5 % of a large map), the answer line already gives its cells and m^2, and "a
+    speck, not a place" told the user asking "where is the toilet?" that the toilet the word
+    was heard in was none (a warning is for an answer to treat with care, and the odds and Bayes
+    factor warnings still flag it where the word does not single it out). It also warns when the
+    region (not small itself) lies in several pieces, each under SMALL_REGION_FRACTION * N cells
+    (specks strewn over the map, not a place), and when one concept labels the whole map (every
+    word points there); first of all, when the fit did not model its words.
     """
     posterior = np.asarray(posterior, dtype=np.float64)  # [L]
     order = np.argsort(-posterior, kind="stable")
@@ -345,7 +363,8 @@ def answer_warnings(
             f"follows mostly from the prior ({basis})"
         )
     cells = int(sizes[concept])
-    if cells < SMALL_REGION_FRACTION * num_free:
+    small = is_speck(cells, 0.0, num_free)  # is_speck's size alone: as small as a speck
+    if small and (heard is None or is_speck(cells, heard, num_free)):
         area = setting("prior='area'", "--prior area", "where")  # a library caller's and where's
         hint = (
             f" (eq. 19 with pi weighs a speck like a room; {area} weighs concepts by their "
@@ -353,12 +372,14 @@ def answer_warnings(
             if prior_name == "pi"
             else ""
         )
+        said = "" if heard is None else f" where {_heard_text(heard)}"
+        alone = "; judged by its size alone: this result keeps no count of the words heard in it"
         warnings.append(
             f"the region is {plural(cells, 'cell')} "
             f"({cells * cell_area:.2f} m^2, {cells / num_free:.2%} of the free cells, under "
-            f"{SMALL_REGION_FRACTION:.1%}): a speck, not a place{hint}"
+            f"{SPECK_SHARE:.1%}){said}: a speck, not a place{hint}{alone * (heard is None)}"
         )
-    elif region is not None:
+    elif not small and region is not None:
         pieces, largest = region_pieces(region, connectivity)
         if pieces > 1 and largest < SMALL_REGION_FRACTION * num_free:
             warnings.append(
@@ -368,6 +389,15 @@ def answer_warnings(
                 "(a disordered map; more sweeps or another preset may order it)"
             )
     return tuple(warnings)
+
+
+def _heard_text(heard: float) -> str:
+    """The words heard in a speck, for its warning: ``"no word was heard"`` or ``"0.013 words
+    were heard (under 0.1)"`` (:data:`~spcopyro.results.concept_words.SPECK_WORDS`)."""
+    if heard <= 0:
+        return "no word was heard"
+    places = next(n for n in range(2, 18) if float(f"{heard:.{n}g}") < SPECK_WORDS)
+    return f"{heard:.{places}g} words were heard (under {SPECK_WORDS:g})"  # 0.0999 not "0.1"
 
 
 def region_pieces(region: np.ndarray, connectivity: int = 4) -> tuple[int, int]:
