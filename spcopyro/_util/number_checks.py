@@ -1,7 +1,13 @@
-"""The number check of every validated setting (plumbing: imports nothing of the package, so
-the settings, the maps and the data layers share it)."""
+"""The number checks of every validated setting (plumbing: imports nothing of the package but
+:mod:`math`, so the settings, the maps, the data layers and the study tables share them).
+
+NumPy scalars: ``np.float64`` is a subclass of float and passes as one; ``np.float32``,
+``np.int64`` and the other NumPy scalars are neither int nor float and are refused (the
+settings convert them first: :class:`spcopyro.config.SpCoConfig`)."""
 
 from __future__ import annotations
+
+import math
 
 
 def is_number(value: object) -> bool:
@@ -10,3 +16,16 @@ def is_number(value: object) -> bool:
     arguments, of a feature scaling, of a map's yaml, of spcoa's pair distance and of the SVI
     options (:class:`spcopyro.guides.svi_method.SVIOptions`)."""
     return isinstance(value, (int, float)) and not isinstance(value, bool)
+
+
+def is_finite_number(value: object) -> bool:
+    """Whether ``value`` is a finite number: :func:`is_number` and neither nan nor +-inf
+    (:math:`|x| < \\infty`). -0.0 and 0 pass. An int too large for a float raises
+    OverflowError (from :func:`math.isfinite`), as the checks written out did."""
+    return is_number(value) and math.isfinite(value)  # type: ignore[arg-type]
+
+
+def is_positive_number(value: object) -> bool:
+    """Whether ``value`` is a finite number > 0 (:math:`0 < x < \\infty`): a scale, a rate or
+    a concentration. 0 and -0.0 fail."""
+    return is_finite_number(value) and value > 0  # type: ignore[operator]

@@ -68,7 +68,7 @@ from dataclasses import dataclass
 from typing import Literal
 
 from spcopyro._util.messages import setting
-from spcopyro._util.number_checks import is_number
+from spcopyro._util.number_checks import is_finite_number, is_number, is_positive_number
 from spcopyro.config.preparation import (
     DEFAULT_SNAP_DISTANCE,
     RESOLVED_WORD_WEIGHTINGS,
@@ -230,9 +230,9 @@ class SpCoConfig:
             raise bad("prior", "must be 'dp' or 'dirichlet'")
         for name in ("alpha", "beta", "chi"):
             value = getattr(self, name)
-            if not (is_number(value) and math.isfinite(value) and value > 0):
+            if not is_positive_number(value):
                 raise bad(name, "must be a finite positive number")
-        if not (is_number(self.gamma) and math.isfinite(self.gamma)):
+        if not is_finite_number(self.gamma):
             raise bad("gamma", "must be a finite number")
         if self.gamma < 0:
             # The sampler's fast path writes exp(gamma n) = 1 + expm1(gamma n) as a mixture of
@@ -256,7 +256,7 @@ class SpCoConfig:
         for name, value in pairs:
             if name in (IMAGES, WORDS):
                 raise bad("concentrations", f"{name!r} is set by chi / beta, not here")
-            if not (is_number(value) and math.isfinite(value) and value > 0):
+            if not is_positive_number(value):
                 raise bad("concentrations", f"{name!r} must be a finite positive number")
         if len({name for name, _ in pairs}) != len(pairs):
             raise bad("concentrations", "names a modality twice")

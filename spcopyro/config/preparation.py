@@ -13,12 +13,11 @@ the package but its plumbing (``spcopyro._util``).
 from __future__ import annotations
 
 import dataclasses
-import math
 from dataclasses import dataclass
 from typing import Literal, get_args
 
 from spcopyro._util.messages import one_of
-from spcopyro._util.number_checks import is_number
+from spcopyro._util.number_checks import is_finite_number, is_positive_number
 
 FeatureScaling = Literal["probability", "floor100"] | float
 """How image histograms become counts: as they are, floor(100 f) (the released code), or s * f."""
@@ -145,33 +144,31 @@ class DataPreparation:
             return ValueError(f"DataPreparation.{name}={getattr(self, name)!r}: {why}")
 
         fs = self.feature_scaling
-        if not (
-            fs in ("probability", "floor100") or (is_number(fs) and math.isfinite(fs) and fs > 0)
-        ):
+        if not (fs in ("probability", "floor100") or is_positive_number(fs)):
             raise bad("feature_scaling", "must be 'probability', 'floor100' or a positive float")
         if self.word_weighting not in WORD_WEIGHTINGS:
             raise bad("word_weighting", f"must be {one_of(WORD_WEIGHTINGS)}")
         snap = self.snap_distance
-        if not (is_number(snap) and math.isfinite(snap) and snap >= 0):
+        if not (is_finite_number(snap) and snap >= 0):
             raise bad("snap_distance", "must be a finite number of metres >= 0")
         radius = self.footprint_radius
-        if not (is_number(radius) and math.isfinite(radius) and radius >= 0):
+        if not (is_finite_number(radius) and radius >= 0):
             raise bad("footprint_radius", "must be a finite number of metres >= 0 (0: off)")
         words = self.word_footprint_radius
-        if words is not None and not (is_number(words) and math.isfinite(words) and words >= 0):
+        if words is not None and not (is_finite_number(words) and words >= 0):
             raise bad("word_footprint_radius", "must be None (footprint_radius's) or a finite "
                       "number of metres >= 0 (0: each utterance at its own cell)")  # fmt: skip
         if self.footprint_kernel not in ("uniform", "gaussian"):
             raise bad("footprint_kernel", "must be 'uniform' or 'gaussian'")
         fov = self.footprint_fov
-        if fov is not None and not (is_number(fov) and math.isfinite(fov) and 0 < fov <= 360):
+        if fov is not None and not (is_finite_number(fov) and 0 < fov <= 360):
             raise bad("footprint_fov", "must be None or an angle in degrees in (0, 360]")
         share = self.footprint_reach_share
-        if not (is_number(share) and math.isfinite(share) and 0 <= share < 1):
+        if not (is_finite_number(share) and 0 <= share < 1):
             raise bad("footprint_reach_share", "must be a number in [0, 1): the share of each "
                       "observation spread over its Voronoi cell (0: off)")  # fmt: skip
         cut = self.footprint_reach_radius
-        if cut is not None and not (is_number(cut) and math.isfinite(cut) and cut > 0):
+        if cut is not None and not is_positive_number(cut):
             raise bad("footprint_reach_radius", "must be None (no limit) or a finite number of "
                       "metres > 0: the Voronoi cells' cut")  # fmt: skip
         if cut is not None and not share:  # it would change nothing but skip the refinement
@@ -179,7 +176,7 @@ class DataPreparation:
                       "footprint_reach_share, which is 0: give a share > 0 "
                       "(--footprint-reach-share) or no radius")  # fmt: skip
         door = self.footprint_reach_door_width
-        if door is not None and not (is_number(door) and math.isfinite(door) and door > 0):
+        if door is not None and not is_positive_number(door):
             raise bad("footprint_reach_door_width", "must be None (no cut) or a finite number "
                       "of metres > 0: the doorways the Voronoi cells are cut at")  # fmt: skip
         if door is not None and not share:  # as the radius: no count changed, refinement lost
@@ -187,10 +184,10 @@ class DataPreparation:
                       "footprint_reach_share, which is 0: give a share > 0 "
                       "(--footprint-reach-share) or no door width")  # fmt: skip
         ws = self.word_scaling
-        if not (is_number(ws) and math.isfinite(ws) and ws > 0):
+        if not is_positive_number(ws):
             raise bad("word_scaling", "must be a positive finite number (1: the paper)")
         size = self.cell_size
-        if size is not None and not (is_number(size) and math.isfinite(size) and size > 0):
+        if size is not None and not is_positive_number(size):
             raise bad("cell_size", "must be None (the map's cells) or a positive number of metres")
 
     def replace(self, **changes: object) -> DataPreparation:

@@ -11,7 +11,6 @@ Moved from :mod:`spcopyro.data.counts`, which re-exports every public name.
 from __future__ import annotations
 
 import logging
-import math
 import os
 from collections.abc import Sequence
 from pathlib import Path
@@ -19,7 +18,7 @@ from pathlib import Path
 import numpy as np
 
 from spcopyro._util.messages import setting
-from spcopyro._util.number_checks import is_number
+from spcopyro._util.number_checks import is_positive_number
 from spcopyro.config import IMAGES, WORDS, FeatureScaling
 from spcopyro.data.observations import DataFormatError, Observations
 from spcopyro.data.placement import PlacementReport, on_map_text
@@ -57,7 +56,7 @@ def scale_features(features: np.ndarray, scaling: FeatureScaling) -> np.ndarray:
         if scaling == "floor100":
             with np.errstate(over="ignore"):  # inf is reported by check_count_totals
                 return np.floor(100.0 * f)
-    elif is_number(scaling) and math.isfinite(scaling) and scaling > 0:
+    elif is_positive_number(scaling):
         with np.errstate(over="ignore"):
             return float(scaling) * f
     raise ValueError(

@@ -148,7 +148,7 @@ from typing import TYPE_CHECKING, Literal, TypeVar
 import numpy as np
 
 from spcopyro._util.context import set_within
-from spcopyro._util.number_checks import is_number
+from spcopyro._util.number_checks import is_finite_number, is_positive_number
 from spcopyro.data.factored_counts import SpreadSources, spread_counts, spread_sources
 from spcopyro.maps.grid import OccupancyGrid
 
@@ -253,7 +253,7 @@ def free_cell_graph(grid: OccupancyGrid) -> sparse.csr_matrix:
 
 
 def _check_share(share: float) -> None:
-    if not (is_number(share) and math.isfinite(share) and 0 <= share < 1):
+    if not (is_finite_number(share) and 0 <= share < 1):
         raise ValueError(f"footprint_reach_share={share!r}: must be a number in [0, 1) "
                          "(each observation's share over its Voronoi cell; 0: off)")  # fmt: skip
 
@@ -267,7 +267,7 @@ def _limit(radius: float) -> float:
 def _check_optional_metres(name: str, value: float | None, none: str, metres: str) -> None:
     """ValueError naming ``name`` and ``value`` unless it is None (what ``none`` says) or a
     finite number of metres > 0 (what ``metres`` says they are)."""
-    if value is not None and not (is_number(value) and math.isfinite(value) and value > 0):
+    if value is not None and not is_positive_number(value):
         raise ValueError(f"{name}={value!r}: must be None ({none}) or a finite number of "
                          f"metres > 0 ({metres})")  # fmt: skip
 
@@ -281,11 +281,11 @@ def _check_door_width(width: float | None) -> None:
 
 
 def _check(radius: float, kernel: str, fov: float | None) -> None:
-    if not (is_number(radius) and math.isfinite(radius) and radius >= 0):
+    if not (is_finite_number(radius) and radius >= 0):
         raise ValueError(f"footprint_radius={radius!r}: must be a finite number of metres >= 0")
     if kernel not in FOOTPRINT_KERNELS:
         raise ValueError(f"footprint_kernel={kernel!r}: must be one of {FOOTPRINT_KERNELS}")
-    if fov is not None and not (is_number(fov) and math.isfinite(fov) and 0 < fov <= 360):
+    if fov is not None and not (is_finite_number(fov) and 0 < fov <= 360):
         raise ValueError(f"footprint_fov={fov!r}: must be None or degrees in (0, 360]")
 
 

@@ -56,7 +56,6 @@ observations. The ELBO is accumulated over chunks of cells and neighbour pairs, 
 from __future__ import annotations
 
 import dataclasses
-import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Literal, NamedTuple
@@ -64,6 +63,7 @@ from typing import Literal, NamedTuple
 import numpy as np
 import torch
 
+from spcopyro._util.number_checks import is_finite_number
 from spcopyro._util.progress import setup_bar
 from spcopyro.config import SpCoConfig
 from spcopyro.guides.blocks import Blocks, grid_blocks
@@ -151,9 +151,7 @@ class StochasticOptions:
         if self.pi_family not in ("dirichlet", "stick-breaking"):
             raise bad("pi_family", "must be 'dirichlet' or 'stick-breaking'")
         tolerance = self.tolerance
-        if isinstance(tolerance, bool) or not isinstance(tolerance, (int, float)):
-            raise bad("tolerance", "must be a finite number >= 0")
-        if not math.isfinite(tolerance) or tolerance < 0:
+        if not (is_finite_number(tolerance) and tolerance >= 0):
             raise bad("tolerance", "must be a finite number >= 0")
         if self.dtype not in _DTYPES:
             raise bad("dtype", f"must be one of {sorted(_DTYPES)}")

@@ -18,7 +18,6 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
-import math
 from collections.abc import Iterator
 from dataclasses import dataclass
 from typing import ClassVar, Literal, NamedTuple
@@ -28,7 +27,7 @@ import pyro.optim
 import torch
 
 from spcopyro._util.messages import setting
-from spcopyro._util.number_checks import is_number
+from spcopyro._util.number_checks import is_number, is_positive_number
 from spcopyro.config import SpCoConfig
 from spcopyro.guides.adam import plain_adam
 from spcopyro.guides.cavi_method import output_from_variational
@@ -126,16 +125,14 @@ class SVIOptions:
         def bad(name: str, why: str) -> ValueError:
             return ValueError(f"SVIOptions.{name}={getattr(self, name)!r}: {why}")
 
-        def positive(value: object) -> bool:
-            return is_number(value) and math.isfinite(value) and value > 0
-
-        if not positive(self.learning_rate):
+        if not is_positive_number(self.learning_rate):
             raise bad("learning_rate", "must be a finite number > 0")
-        if self.global_learning_rate is not None and not positive(self.global_learning_rate):
+        rate = self.global_learning_rate
+        if rate is not None and not is_positive_number(rate):
             raise bad("global_learning_rate", "must be None or a finite number > 0")
         if self.optimiser not in ("adam", "clipped-adam"):
             raise bad("optimiser", "must be 'adam' or 'clipped-adam'")
-        if not positive(self.clip_norm):
+        if not is_positive_number(self.clip_norm):
             raise bad("clip_norm", "must be a finite number > 0")
         if not isinstance(self.num_particles, int) or self.num_particles < 1:
             raise bad("num_particles", "must be an integer >= 1")
@@ -149,7 +146,7 @@ class SVIOptions:
             raise bad("label_smoothing", "must be None or lie in (0, 1)")
         if self.bound not in ("prior", "zero"):
             raise bad("bound", "must be 'prior' or 'zero'")
-        if not (positive(self.tolerance) or self.tolerance == 0):
+        if not (is_positive_number(self.tolerance) or self.tolerance == 0):
             raise bad("tolerance", "must be a finite number >= 0")
         if not isinstance(self.window, int) or isinstance(self.window, bool) or self.window < 1:
             raise bad("window", "must be an integer >= 1")

@@ -22,7 +22,7 @@ from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
 from spcopyro._util.messages import echo, shown_bytes
-from spcopyro._util.number_checks import is_number
+from spcopyro._util.number_checks import is_finite_number, is_number, is_positive_number
 
 if TYPE_CHECKING:
     from collections.abc import Callable
@@ -415,7 +415,7 @@ def read_map_yaml(
         )
 
     resolution = doc["resolution"]
-    if not is_number(resolution) or not (math.isfinite(resolution) and resolution > 0):
+    if not is_positive_number(resolution):
         raise bad("resolution", "a positive finite number")
     low, high = PLAUSIBLE_RESOLUTION
     if warn and not low <= resolution <= high:
@@ -432,7 +432,7 @@ def read_map_yaml(
     if (
         not isinstance(origin, list)
         or len(origin) != 3
-        or not all(is_number(v) and math.isfinite(v) for v in origin)
+        or not all(is_finite_number(v) for v in origin)
     ):
         error = bad("origin", "a list of 3 finite numbers [x, y, yaw]")
         if isinstance(origin, list) and len(origin) == 3 and _is_nan(origin[2]):

@@ -46,6 +46,7 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
+from spcopyro._util.number_checks import is_number
 from spcopyro.experiments.ablation_variants import (
     Variant,
     VariantError,
@@ -468,7 +469,7 @@ def _map_tour_problem(values: Mapping[str, Any]) -> tuple[str, str] | None:
     hint to drop the quotes where the field's check would pass the number unquoted."""
 
     def number(value: object) -> bool:
-        return isinstance(value, int | float) and not isinstance(value, bool) and value == value
+        return is_number(value) and value == value
 
     checks = {
         "categories": (lambda v: isinstance(v, list | tuple) and len(v) > 0

@@ -30,6 +30,7 @@ from pathlib import Path
 import numpy as np
 
 from spcopyro._util.npz import write_npz
+from spcopyro._util.number_checks import is_finite_number  # a score that applied (re-exported)
 from spcopyro.study.cells import Cell
 from spcopyro.study.evaluate import SCORES, STATUS_COLUMNS, WARNINGS
 
@@ -95,12 +96,6 @@ class CellStore:
         staging = self.cells / f".{key}.json"
         staging.write_text(json.dumps(record, default=_json_value, indent=1))
         os.replace(staging, self.cells / f"{key}.json")
-
-
-def is_finite_number(value: object) -> bool:
-    """Whether a table value is a finite number (a score that applied; not a bool, None or
-    text)."""
-    return isinstance(value, int | float) and not isinstance(value, bool) and math.isfinite(value)
 
 
 def _json_value(value: object) -> object:

@@ -12,13 +12,12 @@ map is used only to label its cells afterwards.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass
 
 import numpy as np
 from scipy.spatial import cKDTree
 
-from spcopyro._util.number_checks import is_number
+from spcopyro._util.number_checks import is_finite_number
 from spcopyro.config import WordWeightingSetting
 from spcopyro.data import (
     FeatureScaling,
@@ -72,7 +71,7 @@ def spcoa_data(
     Raises ValueError when there is nothing to cluster (no images and no utterances) or
     ``pair_distance`` is not a finite number >= 0.
     """
-    if not (is_number(pair_distance) and math.isfinite(pair_distance) and pair_distance >= 0):
+    if not (is_finite_number(pair_distance) and pair_distance >= 0):
         raise ValueError(f"pair_distance={pair_distance!r}: must be a finite number >= 0 metres")
     word_weighting = resolve_word_weighting(word_weighting, observations)  # ValueError if bad
     num_images, num_utterances = observations.num_images, observations.num_utterances

@@ -5,6 +5,7 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
+from spcopyro._util.number_checks import is_finite_number, is_positive_number
 from spcopyro.baselines.spcoa.niw import DIM
 
 
@@ -42,12 +43,10 @@ class SpCoAHyperparameters:
             raise bad("num_concepts", "must be a positive integer")
         for name in ("alpha", "beta", "chi", "kappa0", "psi0"):
             value = getattr(self, name)
-            if isinstance(value, bool) or not isinstance(value, (int, float)):
-                raise bad(name, "must be a finite positive number")
-            if not (math.isfinite(value) and value > 0):
+            if not is_positive_number(value):
                 raise bad(name, "must be a finite positive number")
         nu0 = self.nu0
-        if isinstance(nu0, bool) or not isinstance(nu0, (int, float)) or not math.isfinite(nu0):
+        if not is_finite_number(nu0):
             raise bad("nu0", f"must be a finite number > {DIM + 1}")
         if nu0 <= DIM + 1:
             raise bad("nu0", f"must be > d + 1 = {DIM + 1} (so that E[Sigma] exists)")
