@@ -18,7 +18,12 @@ import torch
 from gibbs_problems import config, tiny_grid
 
 from spcopyro.data import Observations, cell_counts, place_observations
-from spcopyro.data.footprint import footprint_weights, spread_counts, spread_sources
+from spcopyro.data.footprint import (
+    SpreadSources,
+    footprint_weights,
+    spread_counts,
+    spread_sources,
+)
 from spcopyro.gibbs.sampler import init
 from spcopyro.model import make_model_data
 
@@ -92,6 +97,79 @@ def test_a_field_of_view_and_unplaced_observations(problem):
         factored.dense(), spread_counts(weights, features, reached), rtol=1e-12, atol=1e-15
     )
     assert factored.sources.sum() == pytest.approx(obs.image_features.sum())  # no unplaced row
+
+
+def _dict_spread_sources(weights, counts: np.ndarray, cells: np.ndarray) -> SpreadSources:
+    """spread_sources as it was before identical_rows grouped its rows: a per-observation loop
+    over one dict keyed on the rows' bytes, each new key numbered as it comes (the reference)."""
+    counts = np.asarray(counts, dtype=np.float64)  # [T, K]
+    weights = weights.tocsr()
+    footprint: dict[tuple[bytes, bytes], int] = {}
+    members: list[int] = []  # [T'] the observations with a footprint
+    groups: list[int] = []  # [T'] the footprint of each
+    for t in range(weights.shape[0]):
+        start, stop = weights.indptr[t], weights.indptr[t + 1]
+        if start == stop:
+            continue
+        key = (weights.indices[start:stop].tobytes(), weights.data[start:stop].tobytes())
+        members.append(t)
+        groups.append(footprint.setdefault(key, len(footprint)))
+    group = np.asarray(groups, dtype=np.int64)  # [T']
+    member = np.asarray(members, dtype=np.int64)  # [T']
+    first = np.zeros(len(footprint), dtype=np.int64)  # [S] an observation of each footprint
+    first[group] = member
+    sources = np.zeros((len(footprint), counts.shape[1]))  # [S, K]
+    np.add.at(sources, group, counts[member])
+    on_cells = weights[first].tocsc()[:, np.asarray(cells, dtype=np.int64)].T.tocsr()  # [M, S]
+    on_cells.sort_indices()
+    return SpreadSources(
+        indptr=on_cells.indptr.astype(np.int64),
+        indices=on_cells.indices.astype(np.int64),
+        weights=on_cells.data.astype(np.float64),
+        sources=sources,
+    )
+
+
+def _random_weights(rng: np.random.Generator, num_obs: int, num_cells: int):
+    """[T, N] CSR weights: each row one of a few patterns, drawn at random (so the patterns'
+    first rows come in another order than their bytes sort), or empty (unplaced); two patterns
+    differ in a zero's sign alone, one holds a stored 0."""
+    from scipy import sparse
+
+    patterns = [([2, 5, 7], [0.5, 0.25, 0.25]), ([1], [1.0]), ([0, 3], [0.0, 1.0]),
+                ([0, 3], [-0.0, 1.0]), ([4, 5, 6, 9], [0.1, 0.2, 0.3, 0.4]), ([9], [1.0]),
+                ([], [])]  # fmt: skip
+    rows = [patterns[i] for i in rng.integers(0, len(patterns), size=num_obs)]
+    indptr = np.cumsum([0] + [len(cols) for cols, _ in rows])  # [T + 1]
+    indices = np.array([c for cols, _ in rows for c in cols], dtype=np.int32)  # [nnz]
+    data = np.array([w for _, ws in rows for w in ws], dtype=np.float64)  # [nnz]
+    return sparse.csr_matrix((data, indices, indptr), shape=(num_obs, num_cells))
+
+
+def test_spread_sources_groups_as_the_dict_loop_did(problem, rng):
+    """spread_sources' footprints (identical_rows on the placed observations' rows) are the old
+    dict loop's, numbered alike: the same arrays to the bit, on the problem's fields of view and
+    unplaced image, and on random rows of a few patterns."""
+    grid, obs = problem
+    cells, _, _ = place_observations(grid, obs.image_xy, 0.0)
+    cells = np.append(cells, [-1, cells[0]])  # [T + 2] an unplaced image, then one more
+    features = rng.dirichlet(np.full(NUM_CLASSES, 0.5), cells.size)  # [T + 2, K]
+    yaw = np.append(obs.image_yaw, [0.0, 0.0])
+    cases = [(footprint_weights(grid, cells, 0.35, yaw=yaw, fov=90.0), features)]
+    for num_obs in (1, 60):
+        cases.append((_random_weights(rng, num_obs, 10), rng.random((num_obs, 5))))
+    cases.append((_random_weights(rng, 4, 10)[[]], np.zeros((0, 5))))  # no observation
+    num_sources = []
+    for weights, counts in cases:
+        reached = np.unique(weights.indices)
+        got = spread_sources(weights, counts, reached)
+        expected = _dict_spread_sources(weights, counts, reached)
+        for name in ("indptr", "indices", "weights", "sources"):
+            a, b = getattr(got, name), getattr(expected, name)
+            assert a.dtype == b.dtype and a.shape == b.shape, name
+            assert a.tobytes() == b.tobytes(), name
+        num_sources.append(got.sources.shape[0])
+    assert num_sources == [6, 1, 6, 0]  # the 60 random rows: six placed patterns, tied
 
 
 def test_model_data_drops_a_product_whose_counts_changed(problem):

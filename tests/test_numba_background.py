@@ -18,12 +18,12 @@ from spcopyro.model import FactoredCounts, make_model_data
 pytest.importorskip("numba")
 
 from spcopyro.data.factored_counts import SpreadSources  # noqa: E402
+from spcopyro.data.identical_rows import identical_rows  # noqa: E402
 from spcopyro.gibbs import numba_sweep  # noqa: E402
 from spcopyro.gibbs.numba_background import (  # noqa: E402
     RowClasses,
     _centre_rows,
     _row_classes,
-    _rows_of,
     background_table,
     row_classes,
 )
@@ -176,9 +176,10 @@ def test_the_compiled_sweep_is_the_same_with_one_row_per_pattern(rng, preparatio
             assert np.array_equal(_bits(a), _bits(b))
 
 
-def _dict_row_classes(spreads: tuple[SpreadSources, ...]) -> RowClasses:
-    """_row_classes as it was before its vectorised grouping: a per-cell loop over one dict keyed
-    on the rows' bytes, each new key numbered as it comes (the reference)."""
+def _dict_row_classes(spreads: tuple[SpreadSources, ...]) -> tuple[np.ndarray, np.ndarray]:
+    """_row_classes' of [M + 1] int32 and first [U] int64 as it found them before its vectorised
+    grouping: a per-cell loop over one dict keyed on the rows' bytes, each new key numbered as it
+    comes (the reference)."""
     M = spreads[0].indptr.size - 1
     rows = [(spread.indptr.tolist(), spread.indices, spread.weights) for spread in spreads]
     class_of: dict[tuple[tuple[bytes, bytes], ...], int] = {}  # per modality: row m's entries
@@ -194,22 +195,19 @@ def _dict_row_classes(spreads: tuple[SpreadSources, ...]) -> RowClasses:
             first.append(m)
         of[m] = u
     of[M] = len(first)
-    first = np.asarray(first, dtype=np.int64)  # [U] ascending
-    return RowClasses(of, first, tuple(_rows_of(spread, first) for spread in spreads))
+    return of, np.asarray(first, dtype=np.int64)  # [M + 1], [U] ascending
 
 
 def _assert_same_classes(spreads: tuple[SpreadSources, ...]) -> RowClasses:
-    """The vectorised grouping (uncached) against the dict loop: the same arrays, dtypes and
-    weights' bits."""
-    got, expected = _row_classes.__wrapped__(spreads), _dict_row_classes(spreads)
-    for name in ("of", "first"):
-        a, b = getattr(got, name), getattr(expected, name)
-        assert a.dtype == b.dtype and a.shape == b.shape and np.array_equal(a, b), name
-    for a, b in zip(got.spreads, expected.spreads, strict=True):
-        assert a.sources is b.sources
-        for name in ("indptr", "indices", "weights"):
-            x, y = getattr(a, name), getattr(b, name)
-            assert x.dtype == y.dtype and x.tobytes() == y.tobytes(), name
+    """The vectorised grouping against the dict loop: _row_classes (uncached) and the helper it
+    calls, identical_rows, give the same arrays and dtypes. (The classes' reduced spreads are
+    _rows_of's of ``first``, checked by the tables and sweeps above.)"""
+    got = _row_classes.__wrapped__(spreads)
+    of, first = _dict_row_classes(spreads)
+    group, first_rows = identical_rows(*((s.indptr, s.indices, s.weights) for s in spreads))
+    for a, b, dtype in ((got.of, of, np.int32), (got.first, first, np.int64),
+                        (group, of[:-1], np.int64), (first_rows, first, np.int64)):  # fmt: skip
+        assert a.dtype == dtype and a.shape == b.shape and np.array_equal(a, b)
     return got
 
 

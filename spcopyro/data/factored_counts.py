@@ -23,6 +23,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from spcopyro.data.identical_rows import identical_rows
+
 if TYPE_CHECKING:
     from scipy import sparse
 
@@ -70,25 +72,18 @@ def spread_sources(
     weights: sparse.csr_matrix, counts: np.ndarray, cells: np.ndarray
 ) -> SpreadSources:
     """The factored form of :func:`spread_counts`'s result for the same arguments: observations
-    whose rows of ``weights`` [T, N] are identical (one footprint) are summed into one source
-    row; unplaced observations (empty rows) are left out."""
+    whose rows of ``weights`` [T, N] are identical, bit for bit (one footprint,
+    :func:`~spcopyro.data.identical_rows.identical_rows`), are summed into one source row, the
+    footprints numbered by their first observation; unplaced observations (empty rows) are left
+    out."""
     counts = np.asarray(counts, dtype=np.float64)  # [T, K]
     weights = weights.tocsr()
-    footprint: dict[tuple[bytes, bytes], int] = {}
-    members: list[int] = []  # [T'] the observations with a footprint
-    groups: list[int] = []  # [T'] the footprint of each
-    for t in range(weights.shape[0]):
-        start, stop = weights.indptr[t], weights.indptr[t + 1]
-        if start == stop:
-            continue
-        key = (weights.indices[start:stop].tobytes(), weights.data[start:stop].tobytes())
-        members.append(t)
-        groups.append(footprint.setdefault(key, len(footprint)))
-    group = np.asarray(groups, dtype=np.int64)  # [T']
-    member = np.asarray(members, dtype=np.int64)  # [T']
-    first = np.zeros(len(footprint), dtype=np.int64)  # [S] an observation of each footprint
-    first[group] = member
-    sources = np.zeros((len(footprint), counts.shape[1]))  # [S, K]
+    member = np.flatnonzero(np.diff(weights.indptr))  # [T'] the observations with a footprint
+    # [T' + 1] their rows' bounds: an empty row holds no entry, so row t' ends where t' + 1 starts
+    bounds = np.append(weights.indptr[:-1][member], weights.indptr[-1])
+    group, first = identical_rows((bounds, weights.indices, weights.data))  # [T'], [S]
+    first = member[first]  # [S] each footprint's first observation
+    sources = np.zeros((first.size, counts.shape[1]))  # [S, K]
     np.add.at(sources, group, counts[member])
     on_cells = weights[first].tocsc()[:, np.asarray(cells, dtype=np.int64)].T.tocsr()  # [M, S]
     on_cells.sort_indices()

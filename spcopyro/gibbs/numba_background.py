@@ -57,6 +57,7 @@ from numba import njit
 from spcopyro._util.threads import one_blas_thread
 from spcopyro.config import SpCoConfig
 from spcopyro.data.factored_counts import SpreadSources
+from spcopyro.data.identical_rows import identical_rows
 from spcopyro.gibbs.state import GibbsState
 from spcopyro.model import ModelData
 
@@ -85,50 +86,15 @@ def row_classes(data: ModelData) -> RowClasses | None:
 @functools.lru_cache(maxsize=8)
 def _row_classes(spreads: tuple[SpreadSources, ...]) -> RowClasses:
     """Cells m and m' share a class where every spread's row m holds the same footprints with
-    the same weights, bit for bit, as row m' (so 0.0 and -0.0 differ, and a NaN matches a NaN of
-    the same bits alone). Each cell's key is its rows' bits side by side (:func:`_padded_bits`);
-    a stable sort of the keys' bytes puts equal keys next to each other, each run's first cell
-    coming first, and the runs are numbered in the order of their first cells: the classes come
-    numbered by their first cell, as the grouping
-    :func:`~spcopyro.data.factored_counts.spread_sources` gives the observations' footprints.
-    Memory: M sum_spreads (2 max row length + 1) 8 bytes for the keys."""
+    the same weights, bit for bit, as row m' (:func:`~spcopyro.data.identical_rows.identical_rows`,
+    the grouping :func:`~spcopyro.data.factored_counts.spread_sources` gives the observations'
+    footprints): the classes come numbered by their first cell."""
     M = spreads[0].indptr.size - 1
-    keys = np.concatenate([_padded_bits(spread) for spread in spreads], axis=1)  # [M, W] uint64
-    rows = keys.view(np.dtype((np.void, keys.shape[1] * keys.itemsize)))[:, 0]  # [M] W*8 bytes
-    order = np.argsort(rows, kind="stable")  # [M] equal keys in runs, each by cell
-    ordered = keys[order]  # [M, W]
-    starts = np.ones(M, dtype=bool)  # [M] where a run of equal keys starts in ``order``
-    starts[1:] = (ordered[1:] != ordered[:-1]).any(axis=1)
-    run_first = order[starts]  # [U] each run's first cell
-    by_first = np.argsort(run_first)  # [U] the runs by their first cell
-    number = np.empty(by_first.size, dtype=np.int32)  # [U] run -> class
-    number[by_first] = np.arange(by_first.size, dtype=np.int32)
+    group, first = identical_rows(*((s.indptr, s.indices, s.weights) for s in spreads))  # [M], [U]
     of = np.empty(M + 1, dtype=np.int32)  # [M + 1]
-    of[order] = number[np.cumsum(starts) - 1]
-    of[M] = by_first.size
-    first = run_first[by_first].astype(np.int64)  # [U] ascending
+    of[:M] = group
+    of[M] = first.size
     return RowClasses(of, first, tuple(_rows_of(spread, first) for spread in spreads))
-
-
-def _padded_bits(spread: SpreadSources) -> np.ndarray:
-    """[M, 2 R + 1] uint64, R = the longest row's length: row m's length, then its footprints'
-    bits and its weights' bits, each padded with zeros to R. Two cells' keys are equal exactly
-    where their rows hold the same footprints and weights, bit for bit, in the same order."""
-    lengths = np.diff(spread.indptr)  # [M]
-    R = int(lengths.max(initial=0))
-    filled = np.arange(R) < lengths[:, None]  # [M, R] row m's first lengths[m] places
-    entries = slice(spread.indptr[0], spread.indptr[-1])  # the rows' entries, row after row
-    keys = np.zeros((lengths.size, 2 * R + 1), dtype=np.uint64)  # [M, 2 R + 1]
-    keys[:, 0] = lengths
-    keys[:, 1 : R + 1][filled] = _bits(spread.indices[entries])
-    keys[:, R + 1 :][filled] = _bits(spread.weights[entries])
-    return keys
-
-
-def _bits(values: np.ndarray) -> np.ndarray:
-    """[n] uint64: each value's bit pattern (at most 8 bytes), zero-extended."""
-    values = np.ascontiguousarray(values)
-    return values.view(np.dtype(f"u{values.dtype.itemsize}")).astype(np.uint64)
 
 
 def _rows_of(spread: SpreadSources, rows: np.ndarray) -> SpreadSources:
