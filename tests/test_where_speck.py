@@ -12,8 +12,9 @@ import pytest
 from hand_results import two_rooms
 
 from spcopyro.cli.main import main
-from spcopyro.results.concept_words import SPECK_WORDS, is_speck
+from spcopyro.results.concept_words import SPECK_SHARE, SPECK_WORDS, is_speck
 from spcopyro.results.result import SpCoResult
+from spcopyro.results.where import SMALL_REGION_FRACTION, answer_warnings
 
 SPECK = "a speck, not a place"
 
@@ -59,11 +60,47 @@ def test_a_small_concept_where_no_word_was_heard_is_still_a_speck(heard, said):
     assert "prior='area' (where's --prior area)" in speck and "size alone" not in speck
 
 
+ALONE = "; judged by its size alone: no count of the words heard in it is known"
+
+
 def test_a_result_without_counts_is_judged_by_size_and_says_so():
     (speck,) = _speck_warnings(_heard(None))
     assert f"under 0.5%): {SPECK} (eq. 19 with pi" in speck
-    assert speck.endswith("; judged by its size alone: this result keeps no count of the words "
-                          "heard in it")  # fmt: skip
+    assert speck.endswith(f"weighs concepts by their share of the map){ALONE}")
+
+
+def test_a_caller_without_counts_is_told_what_is_true_of_it():
+    """answer_warnings called without ``heard`` (no result involved) judged the region by its
+    size and said "this result keeps no count of the words heard in it": the ending now holds
+    for any caller. 4 cells of 1000 (under 0.5 %), odds and Bayes factor 9: the speck alone."""
+    posterior, prior, sizes = np.array([0.9, 0.1]), np.array([0.5, 0.5]), np.array([4, 996])
+    (speck,) = answer_warnings(posterior, prior, sizes, prior_name="area", cell_area=0.0025)
+    assert speck == (
+        f"the region is 4 cells (0.01 m^2, 0.40% of the free cells, under 0.5%): {SPECK}{ALONE}"
+    )
+    assert "result" not in speck
+    # the words heard, given: no speck where 0.1 were heard, a speck saying so under that
+    assert answer_warnings(posterior, prior, sizes, heard=SPECK_WORDS) == ()
+    (counted,) = answer_warnings(posterior, prior, sizes, prior_name="area", heard=0.0)
+    assert counted.endswith(f"under 0.5%) where no word was heard: {SPECK}")
+
+
+def test_a_small_region_in_pieces_is_judged_as_small_not_as_strewn():
+    """A region under the speck share is a speck or a small place, never "strewn" (that warning
+    is for regions not small themselves), whether or not its words heard are known."""
+    region = np.zeros((20, 50), dtype=bool)
+    region[0, 0] = region[0, 2] = region[5, 5] = region[9, 9] = True  # 4 pieces of 1 cell
+    posterior, prior, sizes = np.array([0.9, 0.1]), np.array([0.5, 0.5]), np.array([4, 996])
+    for heard in (None, 0.0, 3.0):
+        warnings = answer_warnings(posterior, prior, sizes, region=region, heard=heard)
+        assert not any("strewn" in w for w in warnings), (heard, warnings)
+        assert any(SPECK in w for w in warnings) == (heard != 3.0), (heard, warnings)
+
+
+def test_the_small_region_fraction_is_the_speck_share():
+    """where's SMALL_REGION_FRACTION (strewn pieces, figure labels) is concept_words'
+    SPECK_SHARE, not a copy of its value that could drift from it."""
+    assert SMALL_REGION_FRACTION is SPECK_SHARE
 
 
 @pytest.mark.parametrize("heard", [3.0, 0.0, None])

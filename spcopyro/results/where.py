@@ -48,8 +48,8 @@ posterior odds over the runner-up below :data:`ODDS_WARNING`, the word's Bayes f
 best concept (how much hearing it changes that concept's odds from the prior) below
 :data:`EVIDENCE_WARNING`, a region that is a speck by the rule of the concept listing and the
 map's legend (:func:`~spcopyro.results.concept_words.is_speck`: under 0.5 % of the free cells
-and under 0.1 words heard in it; by size alone, and saying so, for a result that does not know
-its words heard), or a region strewn over the map in pieces each smaller than
+and under 0.1 words heard in it; by size alone, and saying so, where the words heard in it are
+not known), or a region strewn over the map in pieces each smaller than
 :data:`SMALL_REGION_FRACTION` of the free cells (see :func:`answer_warnings`). The last one is
 for a disordered map: room1dk5 fitted with the released code's values (``--preset
 original-code``, 1000 sweeps) labels the house with 120 concepts of 120-180 cells each, salt and
@@ -126,13 +126,14 @@ EVIDENCE_WARNING = 3.0
 flagged as coming from the prior (the region's size, or pi) rather than from the word. Same
 bound as :data:`ODDS_WARNING`. On that fit: 15-261 (area prior); under paper-dp about 1."""
 
-SMALL_REGION_FRACTION = 0.005
-"""A share of the free cells: a region strewn over the map in pieces each holding fewer than
-this is flagged (:func:`answer_warnings`), and :func:`spcopyro.figures.plotting.plot_semantic_map`
-writes no label on a region under it (93 cells, 0.23 m^2, in room1dk5; 18 cells in the
-synthetic house, whose smallest room holds 13%). Whether the answer's region is a speck is
-:func:`~spcopyro.results.concept_words.is_speck`'s to say (its
-:data:`~spcopyro.results.concept_words.SPECK_SHARE` is the same 0.5%, and words heard count)."""
+SMALL_REGION_FRACTION = SPECK_SHARE
+"""The speck share, :data:`~spcopyro.results.concept_words.SPECK_SHARE` (0.5% of the free
+cells) under this module's name, the same object so that the two cannot drift apart: a region
+strewn over the map in pieces each holding fewer than this is flagged (:func:`answer_warnings`),
+and :func:`spcopyro.figures.plotting.plot_semantic_map` writes no label on a region under it (93
+cells, 0.23 m^2, in room1dk5; 18 cells in the synthetic house, whose smallest room holds 13%).
+Whether the answer's region is a speck is :func:`~spcopyro.results.concept_words.is_speck`'s to
+say (under this share of the free cells, and under 0.1 words heard there)."""
 
 
 SHARED_ANSWER_P = 0.5
@@ -310,7 +311,8 @@ def answer_warnings(
             so the posterior is the prior whatever the word, which the first warning says.
         heard: the words heard in the best concept's cells (:meth:`SpCoResult.heard
             <spcopyro.results.result.SpCoResult.heard>`: the model's counts over
-            ``word_scaling``); None where the result does not know them.
+            ``word_scaling``); None where they are not known (a result without its counts, or
+            a caller that does not pass them): the size alone then decides a speck.
 
     With c the best concept and c' the runner-up, it warns when
 
@@ -323,13 +325,13 @@ def answer_warnings(
 
     the last the rule of :func:`~spcopyro.results.concept_words.is_speck` (h_c the words heard
     in c's cells), by which the concept listing, the map's legend and ``concepts.json`` call a
-    concept a speck, so that ``where`` calls the same concepts specks they do. A result that does
-    not know h_c (``heard`` None) is judged by the size alone, and the warning says so. A region
-    as small where words were heard gets no warning: it is a small place (a toilet or a closet
-    holds under 0.5 % of a large map), the answer line already gives its cells and m^2, and "a
-    speck, not a place" told the user asking "where is the toilet?" that the toilet the word
-    was heard in was none (a warning is for an answer to treat with care, and the odds and Bayes
-    factor warnings still flag it where the word does not single it out). It also warns when the
+    concept a speck, so that ``where`` calls the same concepts specks they do. Where h_c is not
+    known (``heard`` None) the size alone decides, and the warning says so. A region as small
+    where words were heard gets no warning: it is a small place (a toilet or a closet holds
+    under 0.5 % of a large map), the answer line already gives its cells and m^2, and "a speck,
+    not a place" told the user asking "where is the toilet?" that the toilet the word was heard
+    in was none (a warning is for an answer to treat with care, and the odds and Bayes factor
+    warnings still flag it where the word does not single it out). It also warns when the
     region (not small itself) lies in several pieces, each under SMALL_REGION_FRACTION * N cells
     (specks strewn over the map, not a place), and when one concept labels the whole map (every
     word points there); first of all, when the fit did not model its words.
@@ -363,8 +365,9 @@ def answer_warnings(
             f"follows mostly from the prior ({basis})"
         )
     cells = int(sizes[concept])
-    small = is_speck(cells, 0.0, num_free)  # is_speck's size alone: as small as a speck
-    if small and (heard is None or is_speck(cells, heard, num_free)):
+    small = cells < SPECK_SHARE * num_free  # as small as a speck
+    speck = small if heard is None else is_speck(cells, heard, num_free)
+    if speck:
         area = setting("prior='area'", "--prior area", "where")  # a library caller's and where's
         hint = (
             f" (eq. 19 with pi weighs a speck like a room; {area} weighs concepts by their "
@@ -372,12 +375,17 @@ def answer_warnings(
             if prior_name == "pi"
             else ""
         )
-        said = "" if heard is None else f" where {_heard_text(heard)}"
-        alone = "; judged by its size alone: this result keeps no count of the words heard in it"
+        if heard is None:
+            verdict = (
+                f": a speck, not a place{hint}; judged by its size alone: no count of the words "
+                "heard in it is known"
+            )
+        else:
+            verdict = f" where {_heard_text(heard)}: a speck, not a place{hint}"
         warnings.append(
             f"the region is {plural(cells, 'cell')} "
             f"({cells * cell_area:.2f} m^2, {cells / num_free:.2%} of the free cells, under "
-            f"{SPECK_SHARE:.1%}){said}: a speck, not a place{hint}{alone * (heard is None)}"
+            f"{SPECK_SHARE:.1%}){verdict}"
         )
     elif not small and region is not None:
         pieces, largest = region_pieces(region, connectivity)
