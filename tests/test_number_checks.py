@@ -37,9 +37,11 @@ CASES = [  # value, is_number, is_finite_number, is_positive_number
 
 @pytest.mark.parametrize(("value", "number", "finite", "positive"), CASES, ids=repr)
 def test_number_checks(value: object, number: bool, finite: bool, positive: bool) -> None:
-    assert is_number(value) == number
-    assert bool(is_finite_number(value)) == finite
-    assert bool(is_positive_number(value)) == positive
+    """Each returns a bool, True or False itself (``is``): not np.True_ from a comparison of an
+    np.float64, which the declared ``-> bool`` promises not to return."""
+    assert is_number(value) is number
+    assert is_finite_number(value) is finite
+    assert is_positive_number(value) is positive
 
 
 def test_huge_int_raises_as_math_isfinite_does() -> None:

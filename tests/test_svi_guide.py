@@ -279,6 +279,18 @@ def test_bad_input_is_a_clear_error(small):
     assert MeanFieldELBO(num_particles=4).num_particles == 4
 
 
+@pytest.mark.parametrize("tolerance", [False, np.int64(0), np.float32(0.0), -1e-9, float("inf")])
+def test_svi_tolerance_refuses_what_is_not_a_finite_number_at_least_zero(tolerance):
+    """SVIOptions.tolerance is a finite number >= 0 as StochasticOptions' is: False,
+    np.int64(0) and np.float32(0.0) equal 0 but are no numbers (a bool; NumPy scalars other than
+    np.float64), refused as every other SVIOptions number refuses them. They passed while the
+    check was ``positive or == 0`` (-1e-9 and inf were refused then too)."""
+    with pytest.raises(ValueError, match=r"SVIOptions.tolerance=.*: must be a finite number >= 0"):
+        SVIOptions(tolerance=tolerance)
+    assert SVIOptions(tolerance=0).tolerance == 0  # 0 and 0.0 stay allowed: no stopping test
+    assert SVIOptions(tolerance=0.0).tolerance == 0.0
+
+
 @pytest.mark.slow
 def test_svi_finds_the_rooms_and_ends_near_cavi():
     """On an easy house (the one tests/test_inference_interface.py fits), from the same random

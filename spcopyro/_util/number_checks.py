@@ -27,5 +27,6 @@ def is_finite_number(value: object) -> bool:
 
 def is_positive_number(value: object) -> bool:
     """Whether ``value`` is a finite number > 0 (:math:`0 < x < \\infty`): a scale, a rate or
-    a concentration. 0 and -0.0 fail."""
-    return is_finite_number(value) and value > 0  # type: ignore[operator]
+    a concentration. 0 and -0.0 fail. A bool always (``bool(value > 0)``: an np.float64's
+    comparison gives np.bool_)."""
+    return is_finite_number(value) and bool(value > 0)  # type: ignore[operator]

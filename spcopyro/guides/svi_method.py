@@ -27,7 +27,7 @@ import pyro.optim
 import torch
 
 from spcopyro._util.messages import setting
-from spcopyro._util.number_checks import is_number, is_positive_number
+from spcopyro._util.number_checks import is_finite_number, is_number, is_positive_number
 from spcopyro.config import SpCoConfig
 from spcopyro.guides.adam import plain_adam
 from spcopyro.guides.cavi_method import output_from_variational
@@ -146,7 +146,7 @@ class SVIOptions:
             raise bad("label_smoothing", "must be None or lie in (0, 1)")
         if self.bound not in ("prior", "zero"):
             raise bad("bound", "must be 'prior' or 'zero'")
-        if not (is_positive_number(self.tolerance) or self.tolerance == 0):
+        if not (is_finite_number(self.tolerance) and self.tolerance >= 0):
             raise bad("tolerance", "must be a finite number >= 0")
         if not isinstance(self.window, int) or isinstance(self.window, bool) or self.window < 1:
             raise bad("window", "must be an integer >= 1")

@@ -24,10 +24,10 @@ from matplotlib.figure import Figure
 from matplotlib.lines import Line2D
 from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
 
+from spcopyro._util.number_checks import is_finite_number
 from spcopyro._util.outputs import replace_figure
 from spcopyro.figures.fonts import any_script, quiet_glyph_warnings
 from spcopyro.study.maps import row_names
-from spcopyro.study.table import is_finite_number
 
 __all__ = ["QUALITY_TIME_FILE", "WORD_SCORE", "quality_time_figure", "write_quality_time"]
 

@@ -19,10 +19,10 @@ from pathlib import Path
 import numpy as np
 
 from spcopyro._util.messages import fixed, plural
+from spcopyro._util.number_checks import is_finite_number
 from spcopyro._util.outputs import replace_text
 from spcopyro.study.cell_warnings import read_warnings
 from spcopyro.study.evaluate import SCORES, WARNINGS
-from spcopyro.study.table import is_finite_number
 
 __all__ = [
     "REPORT_SCORES", "report_markdown", "summary_rows", "table_cell", "warnings_section",

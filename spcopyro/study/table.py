@@ -30,13 +30,12 @@ from pathlib import Path
 import numpy as np
 
 from spcopyro._util.npz import write_npz
-from spcopyro._util.number_checks import is_finite_number  # a score that applied (re-exported)
 from spcopyro.study.cells import Cell
 from spcopyro.study.evaluate import SCORES, STATUS_COLUMNS, WARNINGS
 
 __all__ = [
-    "COLUMNS", "INPUT_COLUMNS", "PARQUET", "CellStore", "is_finite_number", "read_parquet",
-    "read_table", "table_rows", "write_parquet", "write_table",
+    "COLUMNS", "INPUT_COLUMNS", "PARQUET", "CellStore", "read_parquet", "read_table", "table_rows",
+    "write_parquet", "write_table",
 ]  # fmt: skip
 
 INPUT_COLUMNS = (
