@@ -240,6 +240,16 @@ def test_place_observations_snaps_and_reports(grid):
         place_observations(grid, xy, snap_distance=-1.0)
 
 
+@pytest.mark.parametrize("flag", [True, False])
+def test_place_observations_refuses_a_bool_for_the_snap_distance(grid, flag):
+    """True is an int: ``snap_distance=True`` snapped points up to 1 m away, False none; refused
+    now with a bad distance's message (DataPreparation.snap_distance refused bools already)."""
+    with pytest.raises(
+        ValueError, match=f"snap_distance={flag}: must be a finite number of metres"
+    ):
+        place_observations(grid, [[0.5, 0.5]], snap_distance=flag)
+
+
 def test_a_point_just_inside_a_thick_wall_cell_snaps_to_its_own_side():
     # A model grid coarser than the map: 0.3 m cells, the middle one a wall (it holds a thin
     # wall and free map cells on both sides). A position 2 cm into it belongs to the room it

@@ -131,6 +131,27 @@ def test_a_first_note_stays_on_the_bar_over_the_compiling_iterations(capsys, mon
     capsys.readouterr()
 
 
+@pytest.mark.parametrize(
+    ("argument", "value", "message"),
+    [
+        ("iterations", True, "iterations must be an integer >= 1, got True"),
+        ("iterations", False, "iterations must be an integer >= 1, got False"),
+        ("thin", True, "thin must be an integer >= 0, got True"),
+    ],
+)
+def test_drive_refuses_a_bool_for_a_count(argument, value, message):
+    """True is an int: ``drive(..., iterations=True)`` ran one iteration (thin refused bools
+    already); np.int64 counts stay accepted."""
+    arguments = {"iterations": 2, argument: value}
+
+    def step(state, gamma):
+        return state + 1, _Info(-1.0, 1, gamma)
+
+    with pytest.raises(ValueError, match=message):
+        drive(0, step, gamma=1.0, progress=False, **arguments)
+    assert drive(0, step, np.int64(2), gamma=1.0, progress=False).state == 2
+
+
 def test_a_compiled_run_leaves_nothing_to_compile_for_the_next():
     """numba_compile_pending: the hint is False once the compiled sweep has run (its cache
     written; True only before a checkout's first compiled run)."""

@@ -479,6 +479,29 @@ def test_method_options_reach_nested_hyperparameters():
     assert GibbsOptions(hyper={"alpha": True}).hyper == HyperparameterOptions(alpha=True)
 
 
+@pytest.mark.parametrize(
+    ("options", "field", "why"),
+    [
+        (HyperparameterOptions, "log_alpha_mean", "must be a finite number"),
+        (HyperparameterOptions, "log_gamma_sd", "must be a finite positive number"),
+        (HyperparameterOptions, "alpha_step", "must be a finite positive number"),
+        (HyperparameterOptions, "exchange_probability", r"must be a probability in \(0, 1\]"),
+        (GibbsOptions, "unobserved_refresh", r"must be a probability in \(0, 1\]"),
+        (GibbsOptions, "cluster_moves", r"must be a probability in \[0, 1\]"),
+        (GibbsOptions, "merge_moves", r"must be a probability in \[0, 1\]"),
+        (GibbsOptions, "region_moves", r"must be a probability in \[0, 1\]"),
+    ],
+)
+@pytest.mark.parametrize("flag", [True, False])
+def test_a_bool_is_no_number_of_the_gibbs_options(options, field, why, flag):
+    """True is an int, and these checks (``isinstance(v, (int, float))``) took it as 1 (a prior
+    sd of 1, cluster moves every sweep) and False as 0, while the counts beside them refused
+    bools: a study file's ``options.cluster_moves = true`` meant a probability of 1. Refused now
+    with the message a bad value gets (the flags, ``hyper.alpha`` and its kind, stay bools)."""
+    with pytest.raises(ValueError, match=rf"{options.__name__}\.{field}={flag}: {why}"):
+        options(**{field: flag})
+
+
 @pytest.mark.parametrize("gamma_mode", ["exchange", "pseudolikelihood"])
 def test_chain_traces_and_reports_its_hyperparameters(backend, gamma_mode):
     cfg = config(alpha=2.0, gamma=0.8, chi=1.0, beta=1.0)

@@ -168,6 +168,31 @@ def test_lbp_options_reject_bad_values():
         LoopyBP(random_problem(seed=0)[1], config(), passes=0)
 
 
+@pytest.mark.parametrize(
+    ("backend", "argument", "message"),
+    [
+        ("torch", "damping", r"damping must lie in \[0, 1\)"),
+        ("torch", "passes", "passes must be an integer >= 1"),
+        ("numba", "damping", r"damping must lie in \[0, 1\)"),
+        ("numba", "passes", "passes must be an integer >= 1"),
+        ("numba", "support", r"support must be an integer >= 0 \(0: all L\)"),
+    ],
+)
+@pytest.mark.parametrize("flag", [True, False])
+def test_the_message_passers_refuse_a_bool_for_a_count_or_a_damping(
+    backend, argument, message, flag
+):
+    """LoopyBP and SparseLoopyBP (built by a library caller, not only from checked LBPOptions)
+    took ``passes=True`` as 1 pass, ``support=True`` as 1 concept, ``damping=False`` as 0."""
+    if backend == "torch":
+        messages = LoopyBP
+    else:
+        messages = pytest.importorskip("spcopyro.guides.numba_lbp").SparseLoopyBP
+    data = random_problem(seed=0)[1]
+    with pytest.raises(ValueError, match=rf"{message}, got {flag}"):
+        messages(data, config(), **{argument: flag})
+
+
 def test_the_registered_lbp_method_returns_beliefs_and_a_bethe_trace():
     cfg = config(num_concepts=3, gamma=1.0)
     _, data = random_problem(seed=3)

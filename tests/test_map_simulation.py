@@ -199,6 +199,17 @@ def test_the_door_width_is_read_from_the_map(tmp_path, capsys, caplog):
         simulate_on_map(grid, tour=MapTour(door_width=-1.0))
 
 
+@pytest.mark.parametrize("door_width", [True, False, -1.0, 0, float("nan"), "wide"])
+def test_a_door_width_that_is_no_length_is_refused_by_name(door_width):
+    """A library caller's ``MapTour(door_width=True)`` passed this check, True being an int, and
+    failed later in room_segments as "door_width must be a number", not naming the values the
+    option takes ('auto' or metres); False and 0 were refused here, True was not. (A study file's
+    ``door_width = true`` is refused when the study is read.)"""
+    grid = OccupancyGrid(np.zeros((20, 30), dtype=np.int8), 0.1, (0.0, 0.0, 0.0))
+    with pytest.raises(ValueError, match="door width must be 'auto' or metres > 0, got "):
+        simulate_on_map(grid, tour=MapTour(door_width=door_width))
+
+
 def office_block():
     """A 14 x 26 m office floor at 0.1 m: a 2.5 m corridor, four offices above it opening
     through 1.2 m doors, a lobby below it through a 2 m opening and a closet through 0.8 m."""

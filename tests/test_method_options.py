@@ -8,7 +8,9 @@ import pytest
 
 from spcopyro.cli.main import main
 from spcopyro.gibbs.options import GibbsOptions
+from spcopyro.guides.lbp_method import LBPOptions
 from spcopyro.guides.options import VariationalOptions
+from spcopyro.guides.svi_method import SVIOptions
 from spcopyro.guides.vi_gibbs import VIGibbsOptions
 from spcopyro.inference.protocol import with_options
 
@@ -47,6 +49,32 @@ def test_fit_runs_a_method_with_the_options_given(tmp_path, capsys):
     assert json.loads((out / "config.json").read_text())["inference"]["damping"] == 0.3
     assert main([*args[:-1], "dampin=0.3", "--overwrite"]) == 2
     assert "has no field 'dampin'" in capsys.readouterr().err
+
+
+@pytest.mark.parametrize(
+    ("options", "field", "why"),
+    [
+        (VariationalOptions, "anneal_iterations", "must be an integer >= 0"),
+        (VariationalOptions, "damping", r"must lie in \[0, 1\)"),
+        (VariationalOptions, "tolerance", "must be a finite number >= 0"),
+        (VariationalOptions, "support", "must be an integer >= 0"),
+        (VariationalOptions, "threshold", r"must lie in \[0, 1\)"),
+        (VariationalOptions, "active_tolerance", "must be a finite number >= 0"),
+        (LBPOptions, "damping", r"must lie in \[0, 1\)"),
+        (LBPOptions, "anneal_iterations", "must be an integer >= 0"),
+        (LBPOptions, "support", "must be an integer >= 0"),
+        (SVIOptions, "num_particles", "must be an integer >= 1"),
+        (VIGibbsOptions, "vi_iterations", "must be an integer >= 1"),
+    ],
+)
+@pytest.mark.parametrize("flag", [True, False])
+def test_a_bool_is_no_count_or_number_of_the_variational_options(options, field, why, flag):
+    """True is an int: ``SVIOptions(num_particles=True)`` ran one particle, ``support=True`` kept
+    one concept per cell, ``damping=False`` ran undamped (a library caller's or a study file's
+    ``options.num_particles = true``; the command line parses a field as its type). Refused now
+    with the message a bad value gets, as the fields beside them (``passes``, ``window``) did."""
+    with pytest.raises(ValueError, match=rf"{options.__name__}\.{field}={flag}: {why}"):
+        options(**{field: flag})
 
 
 @pytest.mark.parametrize("field", ["variational", "gibbs"])

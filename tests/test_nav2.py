@@ -26,7 +26,7 @@ from spcopyro.maps import (
 )
 from spcopyro.results.result import EmissionTable, SpCoResult, Trace
 from spcopyro.results.uncertainty import where_probability
-from spcopyro.robot.nav2 import export_nav2, speed_percent
+from spcopyro.robot.nav2 import export_nav2, speed_percent, word_place
 
 WORDS = ("kitchen", "bed", "sofa")
 H, W = 13, 20
@@ -375,6 +375,31 @@ def test_a_speed_mask_never_writes_no_limit_inside_the_place(fit, tmp_path, caps
         speed_percent(np.array([1.0]), min_speed=0.0)
     percent = speed_percent(np.linspace(0, 1, 101), min_speed=1.0, max_speed=100.0)
     assert percent.min() >= 1 and percent[0] == 100  # p = 0: no limit, as intended
+
+
+@pytest.mark.parametrize(
+    ("argument", "message"),
+    [
+        ("threshold", r"probability threshold must lie in \(0, 1\], got True"),
+        ("min_speed", "speed limits must satisfy 1 <= min <= max <= 100"),
+        ("max_speed", "speed limits must satisfy 1 <= min <= max <= 100"),
+    ],
+)
+def test_a_bool_is_no_threshold_or_speed_limit(tmp_path, argument, message):
+    """True is an int: ``threshold=True`` kept out the cells of probability 1, ``min_speed=True``
+    or ``max_speed=True`` set a 1 % limit (a library caller's; the command line parses numbers).
+    Refused as a bad value is, before anything is written."""
+    result, out = top_and_bottom(), tmp_path / "n"
+    mode = "keepout" if argument == "threshold" else "speed"
+    with pytest.raises(ValueError, match=message):
+        export_nav2(result, out, ["kitchen"], mode=mode, **{argument: True})
+    assert not out.exists()
+    if argument == "threshold":
+        with pytest.raises(ValueError, match=message):
+            word_place(result, "kitchen", threshold=True)
+    else:
+        with pytest.raises(ValueError, match=message):
+            speed_percent(np.array([0.5]), **{argument: True})
 
 
 @pytest.mark.slow

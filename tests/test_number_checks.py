@@ -1,5 +1,6 @@
 """spcopyro._util.number_checks: the number checks the settings, the maps, the data layers and
-the study tables share (is_number, is_finite_number, is_positive_number)."""
+the study tables share (is_number, is_finite_number, is_positive_number), and the count check of
+the methods' options (is_int)."""
 
 from __future__ import annotations
 
@@ -8,7 +9,12 @@ import math
 import numpy as np
 import pytest
 
-from spcopyro._util.number_checks import is_finite_number, is_number, is_positive_number
+from spcopyro._util.number_checks import (
+    is_finite_number,
+    is_int,
+    is_number,
+    is_positive_number,
+)
 
 CASES = [  # value, is_number, is_finite_number, is_positive_number
     (True, False, False, False),  # True is an int, no number
@@ -51,3 +57,26 @@ def test_huge_int_raises_as_math_isfinite_does() -> None:
         is_finite_number(10**400)
     with pytest.raises(OverflowError):
         is_positive_number(10**400)
+
+
+@pytest.mark.parametrize(
+    ("value", "integer"),
+    [
+        (0, True),
+        (3, True),
+        (-2, True),
+        (10**400, True),
+        (True, False),
+        (False, False),
+        (np.int64(5), False),
+        (np.bool_(True), False),
+        (3.0, False),
+        (np.float64(3.0), False),
+        (None, False),
+        ("3", False),
+    ],
+    ids=repr,
+)
+def test_is_int_is_an_int_and_no_bool(value: object, integer: bool) -> None:
+    """True is an int, and a count given True was taken as 1; NumPy integers are no int."""
+    assert is_int(value) is integer

@@ -172,6 +172,20 @@ def test_bad_arguments() -> None:
         robustness_studies(sweeps=0, seeds=(0,))
 
 
+@pytest.mark.parametrize(
+    ("arguments", "message"),
+    [
+        (dict(sweeps=True, seeds=(0,)), "sweeps must be a positive integer, got True"),
+        (dict(sweeps=2, seeds=(0,), chains=True), "chains must be an integer >= 2"),
+    ],
+)
+def test_a_bool_is_no_count_of_sweeps_or_chains(arguments, message) -> None:
+    """True is an int: ``sweeps=True`` ran one sweep per setting (chains=True was refused, being
+    < 2, by the same check)."""
+    with pytest.raises(ValueError, match=message):
+        robustness_studies(**arguments)
+
+
 def test_shipped_studies_are_the_former_grids() -> None:
     stability, sensitivity = robustness_studies(sweeps=1000, seeds=(0, 1, 2), chains=3)
     assert [v.name for v in stability.variants] == list(STABILITY_SETTINGS)

@@ -673,6 +673,31 @@ def test_simulate_bag_checks_its_options_before_writing(tmp_path, capsys):
     assert not out.exists()
 
 
+@pytest.mark.parametrize(
+    ("call", "message"),
+    [
+        ("min_distance", "min_distance must be a finite number >= 0, got True"),
+        ("min_interval", "min_interval must be a finite number >= 0, got False"),
+        ("pose_tolerance", "pose_tolerance must be a finite number >= 0, got True"),
+        ("first_trial", "first_trial must be an integer >= 0, got True"),
+        ("image_size", r"image_size must be two integers in 1\.\.8192 \(H, W\), got \(True, 64\)"),
+    ],
+)
+def test_a_bool_is_no_distance_interval_trial_or_image_side(tmp_path, map_yaml, call, message):
+    """True is an int: ImportOptions took ``min_distance=True`` as 1 m, import_bags'
+    ``first_trial=True`` as trial 1, write_synthetic_bags' ``image_size=(True, 64)`` as 1 row (a
+    library caller's; the commands parse numbers). Refused with a bad value's message, before
+    any bag is read or written."""
+    with pytest.raises(ValueError, match=message):
+        if call == "first_trial":
+            import_bags([tmp_path / "b.bag"], map_yaml, tmp_path / "h", first_trial=True)
+        elif call == "image_size":
+            write_synthetic_bags(tmp_path / "sb", image_size=(True, 64))
+        else:
+            ImportOptions(**{call: call != "min_interval"})
+    assert not (tmp_path / "h").exists() and not (tmp_path / "sb").exists()
+
+
 def test_a_failed_simulate_bag_leaves_nothing_in_a_retrys_way(tmp_path, monkeypatch):
     """QA: a failed simulate-bag left map.yaml behind, so a retry said "map.yaml already
     exists ... never overwrites a recording". The map is written last, and a failure removes

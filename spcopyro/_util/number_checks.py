@@ -3,7 +3,8 @@
 
 NumPy scalars: ``np.float64`` is a subclass of float and passes as one; ``np.float32``,
 ``np.int64`` and the other NumPy scalars are neither int nor float and are refused (the
-settings convert them first: :class:`spcopyro.config.SpCoConfig`)."""
+settings convert them first: :class:`spcopyro.config.SpCoConfig`); :func:`is_int` refuses
+``np.int64`` too."""
 
 from __future__ import annotations
 
@@ -30,3 +31,11 @@ def is_positive_number(value: object) -> bool:
     a concentration. 0 and -0.0 fail. A bool always (``bool(value > 0)``: an np.float64's
     comparison gives np.bool_)."""
     return is_finite_number(value) and bool(value > 0)  # type: ignore[operator]
+
+
+def is_int(value: object) -> bool:
+    """Whether ``value`` is an int, not a bool (True is an int, and was taken as 1): the type
+    check of a count (iterations, passes, particles, sweeps) in the methods' options; the caller
+    checks the bound. ``np.int64`` is no int and is refused, as ``isinstance(value, int)``
+    refused it."""
+    return isinstance(value, int) and not isinstance(value, bool)

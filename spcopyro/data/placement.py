@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from spcopyro._util.number_checks import is_finite_number
 from spcopyro.config import DEFAULT_SNAP_DISTANCE
 from spcopyro.data.observations import Observations, _as_xy
 from spcopyro.maps.grid import OCCUPIED, OccupancyGrid, cells_on_map
@@ -111,7 +112,7 @@ def _place(
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
     """:func:`place_observations` plus each snapped or unplaced point's distance in metres to
     the nearest free cell's square (0 on free cells, inf when the map has no free cell)."""
-    if not (isinstance(snap_distance, (int, float)) and math.isfinite(snap_distance)):
+    if not is_finite_number(snap_distance):
         raise ValueError(f"snap_distance={snap_distance!r}: must be a finite number of metres")
     if snap_distance < 0:
         raise ValueError(f"snap_distance={snap_distance!r}: must be >= 0 metres")

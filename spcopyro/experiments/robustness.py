@@ -29,6 +29,8 @@ from typing import NamedTuple
 
 import numpy as np
 
+from spcopyro._util.number_checks import is_int
+
 ANNEAL_FRACTION = 0.2
 """Share of a run's sweeps spent annealing gamma (:mod:`spcopyro.gibbs.anneal`), when annealed."""
 CLUSTER_MOVES = 0.1
@@ -87,11 +89,11 @@ def spread(values: Sequence[float]) -> dict[str, float]:
 
 
 def check_runs(sweeps: int, seeds: tuple[int, ...], chains: int | None = None) -> None:
-    if not isinstance(sweeps, int) or sweeps < 1:
+    if not is_int(sweeps) or sweeps < 1:
         raise ValueError(f"sweeps must be a positive integer, got {sweeps!r}")
     if len(seeds) == 0:
         raise ValueError("seeds must name at least one synthetic house")
-    if chains is not None and (not isinstance(chains, int) or chains < 2):
+    if chains is not None and (not is_int(chains) or chains < 2):
         raise ValueError(f"chains must be an integer >= 2 (best of K, chain ARI), got {chains!r}")
 
 

@@ -21,8 +21,9 @@ over a narrow range around its critical value ln(1 + sqrt(L)), 1.0-2.5 for L = 2
 from __future__ import annotations
 
 import dataclasses
-import math
 from dataclasses import dataclass
+
+from spcopyro._util.number_checks import is_finite_number, is_int, is_number, is_positive_number
 
 GAMMA_MODES = ("fixed", "exchange", "pseudolikelihood")
 
@@ -93,20 +94,20 @@ class HyperparameterOptions:
             raise bad("gamma", f"choose one of {GAMMA_MODES}")
         for name in ("log_alpha_mean", "log_concentration_mean", "log_gamma_mean"):
             value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value)):
+            if not is_finite_number(value):
                 raise bad(name, "must be a finite number")
         positive = ("log_alpha_sd", "log_concentration_sd", "log_gamma_sd", "alpha_step",
                     "concentration_step", "gamma_step")  # fmt: skip
         for name in positive:
             value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value > 0):
+            if not is_positive_number(value):
                 raise bad(name, "must be a finite positive number")
         for name in ("concentration_moves", "aux_sweeps"):
             value = getattr(self, name)
-            if not (isinstance(value, int) and not isinstance(value, bool) and value >= 1):
+            if not (is_int(value) and value >= 1):
                 raise bad(name, "must be an integer >= 1")
         p = self.exchange_probability
-        if not (isinstance(p, (int, float)) and 0.0 < p <= 1.0):
+        if not (is_number(p) and 0.0 < p <= 1.0):
             raise bad("exchange_probability", "must be a probability in (0, 1]")
 
     @property

@@ -6,6 +6,7 @@ from __future__ import annotations
 import dataclasses
 from dataclasses import dataclass
 
+from spcopyro._util.number_checks import is_number
 from spcopyro.gibbs.anneal import check_anneal_sweeps
 from spcopyro.gibbs.hyper_options import HyperparameterOptions, as_hyper_options
 from spcopyro.inference.names import BACKENDS
@@ -60,16 +61,16 @@ class GibbsOptions:
         if self.backend not in BACKENDS:
             raise bad("backend", f"choose one of {BACKENDS}")
         refresh = self.unobserved_refresh
-        if not (isinstance(refresh, (int, float)) and 0.0 < refresh <= 1.0):
+        if not (is_number(refresh) and 0.0 < refresh <= 1.0):
             raise bad("unobserved_refresh", "must be a probability in (0, 1]")
         moves = self.cluster_moves
-        if not (isinstance(moves, (int, float)) and 0.0 <= moves <= 1.0):
+        if not (is_number(moves) and 0.0 <= moves <= 1.0):
             raise bad("cluster_moves", "must be a probability in [0, 1]")
         merges = self.merge_moves
-        if not (isinstance(merges, (int, float)) and 0.0 <= merges <= 1.0):
+        if not (is_number(merges) and 0.0 <= merges <= 1.0):
             raise bad("merge_moves", "must be a probability in [0, 1]")
         regions = self.region_moves
-        if not (isinstance(regions, (int, float)) and 0.0 <= regions <= 1.0):
+        if not (is_number(regions) and 0.0 <= regions <= 1.0):
             raise bad("region_moves", "must be a probability in [0, 1]")
         object.__setattr__(self, "anneal_sweeps", check_anneal_sweeps(self.anneal_sweeps))
         object.__setattr__(self, "hyper", as_hyper_options(self.hyper))

@@ -55,6 +55,7 @@ from typing import NamedTuple
 
 import torch
 
+from spcopyro._util.number_checks import is_int, is_number
 from spcopyro.config import SpCoConfig
 from spcopyro.guides.factors import (
     GlobalFactors,
@@ -126,9 +127,9 @@ class LoopyBP:
     """
 
     def __init__(self, data: ModelData, config: SpCoConfig, damping: float = 0.5, passes: int = 1):
-        if not (isinstance(damping, (int, float)) and 0 <= damping < 1):
+        if not (is_number(damping) and 0 <= damping < 1):
             raise ValueError(f"damping must lie in [0, 1), got {damping!r}")
-        if not isinstance(passes, int) or passes < 1:
+        if not is_int(passes) or passes < 1:
             raise ValueError(f"passes must be an integer >= 1, got {passes!r}")
         self.data, self.config = data, config
         self.damping, self.passes = float(damping), passes

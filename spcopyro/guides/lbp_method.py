@@ -13,6 +13,7 @@ from typing import Any, Literal, NamedTuple
 
 import torch
 
+from spcopyro._util.number_checks import is_int, is_number
 from spcopyro.config import SpCoConfig
 from spcopyro.guides.cavi import num_used, update_globals
 from spcopyro.guides.cavi_method import output_from_variational
@@ -76,13 +77,11 @@ class LBPOptions:
         def bad(name: str, why: str) -> ValueError:
             return ValueError(f"LBPOptions.{name}={getattr(self, name)!r}: {why}")
 
-        if not (isinstance(self.damping, (int, float)) and 0 <= self.damping < 1):
+        if not (is_number(self.damping) and 0 <= self.damping < 1):
             raise bad("damping", "must lie in [0, 1)")
-        if not isinstance(self.passes, int) or isinstance(self.passes, bool) or self.passes < 1:
+        if not is_int(self.passes) or self.passes < 1:
             raise bad("passes", "must be an integer >= 1")
-        if isinstance(self.threshold, bool) or not (
-            isinstance(self.threshold, (int, float)) and 0 <= self.threshold < math.inf
-        ):
+        if not (is_number(self.threshold) and 0 <= self.threshold < math.inf):
             raise bad("threshold", "must be a finite number >= 0")
         # The shared options check the rest (and name the field).
         try:

@@ -118,6 +118,7 @@ from typing import Any, NamedTuple
 import numpy as np
 import torch
 
+from spcopyro._util.number_checks import is_int, is_number
 from spcopyro.config import SpCoConfig
 from spcopyro.guides.factors import (
     GlobalFactors,
@@ -179,11 +180,11 @@ class SparseLoopyBP:
         threshold: float = 0.0,
         active_tolerance: float = 0.0,
     ) -> None:
-        if not (isinstance(damping, (int, float)) and 0 <= damping < 1):
+        if not (is_number(damping) and 0 <= damping < 1):
             raise ValueError(f"damping must lie in [0, 1), got {damping!r}")
-        if not isinstance(passes, int) or passes < 1:
+        if not is_int(passes) or passes < 1:
             raise ValueError(f"passes must be an integer >= 1, got {passes!r}")
-        if not isinstance(support, int) or support < 0:
+        if not is_int(support) or support < 0:
             raise ValueError(f"support must be an integer >= 0 (0: all L), got {support!r}")
         if not 0.0 <= threshold < math.inf:
             raise ValueError(f"threshold must be finite and >= 0, got {threshold}")

@@ -3,10 +3,10 @@
 from __future__ import annotations
 
 import logging
-import math
 from dataclasses import dataclass
 from typing import Literal
 
+from spcopyro._util.number_checks import is_finite_number, is_int, is_number
 from spcopyro.guides.factors import PiFamily
 
 
@@ -64,13 +64,13 @@ class VariationalOptions:
         def bad(name: str, why: str) -> ValueError:
             return ValueError(f"VariationalOptions.{name}={getattr(self, name)!r}: {why}")
 
-        if not isinstance(self.anneal_iterations, int) or self.anneal_iterations < 0:
+        if not is_int(self.anneal_iterations) or self.anneal_iterations < 0:
             raise bad("anneal_iterations", "must be an integer >= 0")
-        if not (isinstance(self.damping, (int, float)) and 0 <= self.damping < 1):
+        if not (is_number(self.damping) and 0 <= self.damping < 1):
             raise bad("damping", "must lie in [0, 1)")
         if self.pi_family not in ("dirichlet", "stick-breaking"):
             raise bad("pi_family", "must be 'dirichlet' or 'stick-breaking'")
-        if not (isinstance(self.tolerance, (int, float)) and math.isfinite(self.tolerance)):
+        if not is_finite_number(self.tolerance):
             raise bad("tolerance", "must be a finite number >= 0")
         if self.tolerance < 0:
             raise bad("tolerance", "must be >= 0")
@@ -78,15 +78,11 @@ class VariationalOptions:
             raise bad("backend", "must be 'auto', 'torch' or 'numba'")
         if self.init not in ("one-hot", "soft"):
             raise bad("init", "must be 'one-hot' or 'soft'")
-        if not isinstance(self.support, int) or self.support < 0:
+        if not is_int(self.support) or self.support < 0:
             raise bad("support", "must be an integer >= 0 (0: all concepts)")
-        if not (isinstance(self.threshold, (int, float)) and 0 <= self.threshold < 1):
+        if not (is_number(self.threshold) and 0 <= self.threshold < 1):
             raise bad("threshold", "must lie in [0, 1)")
-        if not (
-            isinstance(self.active_tolerance, (int, float))
-            and math.isfinite(self.active_tolerance)
-            and self.active_tolerance >= 0
-        ):
+        if not (is_finite_number(self.active_tolerance) and self.active_tolerance >= 0):
             raise bad("active_tolerance", "must be a finite number >= 0")
 
 

@@ -27,7 +27,7 @@ import pyro.optim
 import torch
 
 from spcopyro._util.messages import setting
-from spcopyro._util.number_checks import is_finite_number, is_number, is_positive_number
+from spcopyro._util.number_checks import is_finite_number, is_int, is_number, is_positive_number
 from spcopyro.config import SpCoConfig
 from spcopyro.guides.adam import plain_adam
 from spcopyro.guides.cavi_method import output_from_variational
@@ -134,12 +134,10 @@ class SVIOptions:
             raise bad("optimiser", "must be 'adam' or 'clipped-adam'")
         if not is_positive_number(self.clip_norm):
             raise bad("clip_norm", "must be a finite number > 0")
-        if not isinstance(self.num_particles, int) or self.num_particles < 1:
+        if not is_int(self.num_particles) or self.num_particles < 1:
             raise bad("num_particles", "must be an integer >= 1")
         anneal = self.anneal_iterations
-        if anneal is not None and (
-            not isinstance(anneal, int) or isinstance(anneal, bool) or anneal < 0
-        ):
+        if anneal is not None and (not is_int(anneal) or anneal < 0):
             raise bad("anneal_iterations", "must be None or an integer >= 0")
         smoothing = self.label_smoothing
         if smoothing is not None and not (is_number(smoothing) and 0 < smoothing < 1):
@@ -148,7 +146,7 @@ class SVIOptions:
             raise bad("bound", "must be 'prior' or 'zero'")
         if not (is_finite_number(self.tolerance) and self.tolerance >= 0):
             raise bad("tolerance", "must be a finite number >= 0")
-        if not isinstance(self.window, int) or isinstance(self.window, bool) or self.window < 1:
+        if not is_int(self.window) or self.window < 1:
             raise bad("window", "must be an integer >= 1")
 
     def start_smoothing(self, given_start: bool) -> float:

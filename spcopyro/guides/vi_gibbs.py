@@ -13,6 +13,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from spcopyro._util.number_checks import is_int
 from spcopyro.config import SpCoConfig
 from spcopyro.gibbs.method import gibbs_record, output_from_run
 from spcopyro.gibbs.options import GibbsOptions
@@ -35,7 +36,7 @@ class VIGibbsOptions:
     gibbs: GibbsOptions = field(default_factory=GibbsOptions)
 
     def __post_init__(self) -> None:
-        if not isinstance(self.vi_iterations, int) or self.vi_iterations < 1:
+        if not is_int(self.vi_iterations) or self.vi_iterations < 1:
             raise ValueError(
                 f"VIGibbsOptions.vi_iterations={self.vi_iterations!r}: must be an integer >= 1"
             )

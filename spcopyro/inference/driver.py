@@ -142,7 +142,8 @@ def drive(
         marginals: ``marginals(state)`` ``[N, L]``, the q(C) a Ctrl-C hands back in
             :class:`DriveInterrupted` (None: none).
     """
-    if not isinstance(iterations, (int, np.integer)) or iterations < 1:
+    integer = isinstance(iterations, int | np.integer) and not isinstance(iterations, bool)
+    if not integer or iterations < 1:
         raise ValueError(f"iterations must be an integer >= 1, got {iterations!r}")
     if not isinstance(thin, (int, np.integer)) or isinstance(thin, bool) or thin < 0:
         raise ValueError(f"thin must be an integer >= 0, got {thin!r}")

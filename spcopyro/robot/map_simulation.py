@@ -49,6 +49,7 @@ from typing import Literal
 
 import numpy as np
 
+from spcopyro._util.number_checks import is_positive_number
 from spcopyro.baselines.geometry import (
     auto_door_width,
     counts_as_room,
@@ -208,7 +209,7 @@ def simulate_on_map(
     door_width = tour.door_width
     if door_width == "auto":
         door_width, _ = auto_door_width(grid, min_room_area=tour.min_room_area)
-    elif not (isinstance(door_width, int | float) and math.isfinite(door_width) and door_width > 0):
+    elif not is_positive_number(door_width):
         raise ValueError(f"door width must be 'auto' or metres > 0, got {door_width!r}")
     # a bar on a large map (unless under CI), as auto_door_width's room counts have
     segments = room_segments(grid, door_width=door_width, min_room_area=tour.min_room_area,

@@ -74,6 +74,7 @@ from pathlib import Path
 import numpy as np
 import yaml
 
+from spcopyro._util.number_checks import is_number
 from spcopyro._util.outputs import stage_marked_folder
 from spcopyro.maps import OccupancyGrid, save_filter_mask, save_label_map_server, save_map
 from spcopyro.maps.coarse import is_coarsening
@@ -181,7 +182,7 @@ def speed_values(
 
 
 def _check_threshold(threshold: float) -> None:
-    if not (isinstance(threshold, (int, float)) and 0.0 < threshold <= 1.0):
+    if not (is_number(threshold) and 0.0 < threshold <= 1.0):
         raise ValueError(f"the place's probability threshold must lie in (0, 1], got {threshold!r}")
 
 
@@ -192,7 +193,8 @@ exactly where the word's place is (issue 24 item 2)."""
 
 
 def _check_speeds(min_speed: float, max_speed: float) -> None:
-    if not (MIN_SPEED_LIMIT <= min_speed <= max_speed <= 100.0):
+    flag = isinstance(min_speed, bool | np.bool_) or isinstance(max_speed, bool | np.bool_)
+    if flag or not (MIN_SPEED_LIMIT <= min_speed <= max_speed <= 100.0):
         raise ValueError(
             "speed limits must satisfy 1 <= min <= max <= 100 (percent of the maximum speed; "
             "Nav2 reads a 0 % limit as no limit at all), "

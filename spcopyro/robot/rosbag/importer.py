@@ -65,6 +65,7 @@ import numpy as np
 
 from spcopyro._util.folder_commit import absolute_path, commit_folder
 from spcopyro._util.interrupts import remove_tree
+from spcopyro._util.number_checks import is_finite_number
 from spcopyro._util.outputs import staging_folder
 from spcopyro._util.progress import clears_when_done, progress_enabled
 from spcopyro.data.text import tokenize
@@ -162,7 +163,7 @@ class ImportOptions:
     def __post_init__(self) -> None:
         for name in ("min_distance", "min_interval", "pose_tolerance"):
             value = getattr(self, name)
-            if not (isinstance(value, (int, float)) and math.isfinite(value) and value >= 0):
+            if not (is_finite_number(value) and value >= 0):
                 raise ValueError(f"{name} must be a finite number >= 0, got {value!r}")
         for name in ("pose_topic", "image_topic", "words_topic", "map_frame"):
             if not str(getattr(self, name)).strip("/ "):  # "" gave "no pose topic ''" or a
@@ -472,7 +473,8 @@ def import_bags(
     _rosbags()  # a missing rosbags is said before anything else
     if not bags:
         raise ValueError("import_bags: no bag given")
-    if int(first_trial) != first_trial or first_trial < 0:
+    flag = isinstance(first_trial, bool | np.bool_)  # True == int(True): taken as trial 1
+    if flag or int(first_trial) != first_trial or first_trial < 0:
         raise ValueError(f"first_trial must be an integer >= 0, got {first_trial!r}")
     # The inputs before OUT: a mistyped bag, map or topic was reported as "OUT already exists",
     # and a topic missing from the last bag was found after the others had been read.

@@ -344,7 +344,8 @@ def write_synthetic_bags(
         raise ValueError(f"image_format must be raw, jpeg or png, got {image_format!r}")
     size = tuple(image_size)
     if len(size) != 2 or not all(
-        isinstance(v, int | np.integer) and 1 <= v <= MAX_IMAGE_SIDE for v in size
+        isinstance(v, int | np.integer) and not isinstance(v, bool) and 1 <= v <= MAX_IMAGE_SIDE
+        for v in size
     ):
         raise ValueError(
             f"image_size must be two integers in 1..{MAX_IMAGE_SIDE} (H, W), got {image_size!r}"
