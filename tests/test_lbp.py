@@ -176,14 +176,17 @@ def test_lbp_options_reject_bad_values():
         ("numba", "damping", r"damping must lie in \[0, 1\)"),
         ("numba", "passes", "passes must be an integer >= 1"),
         ("numba", "support", r"support must be an integer >= 0 \(0: all L\)"),
+        ("numba", "threshold", "threshold must be a finite number >= 0"),
+        ("numba", "active_tolerance", "active_tolerance must be a finite number >= 0"),
     ],
 )
 @pytest.mark.parametrize("flag", [True, False])
-def test_the_message_passers_refuse_a_bool_for_a_count_or_a_damping(
+def test_the_message_passers_refuse_a_bool_for_a_count_or_a_number(
     backend, argument, message, flag
 ):
     """LoopyBP and SparseLoopyBP (built by a library caller, not only from checked LBPOptions)
-    took ``passes=True`` as 1 pass, ``support=True`` as 1 concept, ``damping=False`` as 0."""
+    took ``passes=True`` as 1 pass, ``support=True`` as 1 concept, ``damping=False`` as 0,
+    ``threshold=True`` or ``active_tolerance=True`` as 1."""
     if backend == "torch":
         messages = LoopyBP
     else:

@@ -378,28 +378,31 @@ def test_a_speed_mask_never_writes_no_limit_inside_the_place(fit, tmp_path, caps
 
 
 @pytest.mark.parametrize(
-    ("argument", "message"),
+    ("arguments", "message"),
     [
-        ("threshold", r"probability threshold must lie in \(0, 1\], got True"),
-        ("min_speed", "speed limits must satisfy 1 <= min <= max <= 100"),
-        ("max_speed", "speed limits must satisfy 1 <= min <= max <= 100"),
+        ({"threshold": True}, r"probability threshold must lie in \(0, 1\], got True"),
+        ({"min_speed": True}, "speed limits must satisfy 1 <= min <= max <= 100"),
+        ({"min_speed": 1, "max_speed": True}, "speed limits must satisfy 1 <= min <= max <= 100"),
     ],
+    ids=["threshold", "min_speed", "max_speed"],
 )
-def test_a_bool_is_no_threshold_or_speed_limit(tmp_path, argument, message):
+def test_a_bool_is_no_threshold_or_speed_limit(tmp_path, arguments, message):
     """True is an int: ``threshold=True`` kept out the cells of probability 1, ``min_speed=True``
-    or ``max_speed=True`` set a 1 % limit (a library caller's; the command line parses numbers).
-    Refused as a bad value is, before anything is written."""
+    set a 1 % floor, and ``max_speed=True`` with ``min_speed=1`` a 1 % limit everywhere (each
+    passed ``1 <= min <= max <= 100``; a library caller's, the command line parses numbers).
+    Refused as a bad value is, before anything is written. (``max_speed=True`` with the default
+    min_speed of 30 failed ``min <= max`` before.)"""
     result, out = top_and_bottom(), tmp_path / "n"
-    mode = "keepout" if argument == "threshold" else "speed"
+    mode = "keepout" if "threshold" in arguments else "speed"
     with pytest.raises(ValueError, match=message):
-        export_nav2(result, out, ["kitchen"], mode=mode, **{argument: True})
+        export_nav2(result, out, ["kitchen"], mode=mode, **arguments)
     assert not out.exists()
-    if argument == "threshold":
+    if "threshold" in arguments:
         with pytest.raises(ValueError, match=message):
-            word_place(result, "kitchen", threshold=True)
+            word_place(result, "kitchen", **arguments)
     else:
         with pytest.raises(ValueError, match=message):
-            speed_percent(np.array([0.5]), **{argument: True})
+            speed_percent(np.array([0.5]), **arguments)
 
 
 @pytest.mark.slow

@@ -11,10 +11,10 @@ from __future__ import annotations
 
 import math
 
-import numpy as np
 import torch
 
 from spcopyro._util.arguments import MAX_SEED
+from spcopyro._util.number_checks import is_integer
 
 _MAX_REJECTION_ROUNDS = 64
 
@@ -23,8 +23,7 @@ def check_seed(seed: object, name: str = "seed") -> int:
     """``seed`` as an int in 0 .. :data:`MAX_SEED`, else a ValueError naming ``name`` and the
     value: a float (1.5 seeded as 1), a bool, a string, None or a :class:`torch.Generator` (pass
     it as the ``generator``) is refused rather than truncated or failing deep inside."""
-    integer = isinstance(seed, int | np.integer) and not isinstance(seed, bool)
-    if not integer or not 0 <= seed <= MAX_SEED:  # type: ignore[operator]
+    if not is_integer(seed) or not 0 <= seed <= MAX_SEED:  # type: ignore[operator]
         hint = ": pass a generator as the generator" if isinstance(seed, torch.Generator) else ""
         raise ValueError(f"{name} must be an integer in 0..2**63 - 1, got {seed!r}{hint}")
     return int(seed)

@@ -68,7 +68,7 @@ from dataclasses import dataclass
 from typing import Literal
 
 from spcopyro._util.messages import setting
-from spcopyro._util.number_checks import is_finite_number, is_number, is_positive_number
+from spcopyro._util.number_checks import is_finite_number, is_int, is_number, is_positive_number
 from spcopyro.config.preparation import (
     DEFAULT_SNAP_DISTANCE,
     RESOLVED_WORD_WEIGHTINGS,
@@ -214,9 +214,6 @@ class SpCoConfig:
         def bad(name: str, why: str) -> ValueError:
             return ValueError(f"SpCoConfig.{name}={getattr(self, name)!r}: {why}")
 
-        def integer(value: object) -> bool:  # True is no number of concepts, 4.0 no count
-            return isinstance(value, int) and not isinstance(value, bool)
-
         for name in ("num_concepts", "connectivity", "alpha", "beta", "chi", "gamma"):
             value = getattr(self, name)  # NumPy scalars (np.int64(5) "must be a positive integer")
             if isinstance(value, numbers.Integral) and not isinstance(value, int):
@@ -224,7 +221,7 @@ class SpCoConfig:
             elif isinstance(value, numbers.Real) and not isinstance(value, int | float):
                 object.__setattr__(self, name, float(value))
 
-        if not integer(self.num_concepts) or self.num_concepts < 1:
+        if not is_int(self.num_concepts) or self.num_concepts < 1:
             raise bad("num_concepts", "must be a positive integer")
         if self.prior not in ("dp", "dirichlet"):
             raise bad("prior", "must be 'dp' or 'dirichlet'")
@@ -241,7 +238,7 @@ class SpCoConfig:
         if self.connectivity in (4, 8) and self.gamma * self.connectivity > 700:
             # exp(gamma * n) for n up to D neighbours must stay finite in float64.
             raise bad("gamma", f"gamma * connectivity must be <= 700, got {self.gamma}")
-        if not integer(self.connectivity) or self.connectivity not in (4, 8):
+        if not is_int(self.connectivity) or self.connectivity not in (4, 8):
             raise bad("connectivity", "must be 4 or 8")
         for name in ("use_images", "use_words"):  # "no" or "false" switched a modality on
             if not isinstance(getattr(self, name), bool):

@@ -32,6 +32,7 @@ from typing import NamedTuple
 import numpy as np
 import torch
 
+from spcopyro._util.number_checks import is_integer
 from spcopyro._util.progress import progress_enabled
 from spcopyro._util.random_draws import check_seed
 from spcopyro.config import SpCoConfig
@@ -300,8 +301,7 @@ def compile_note(chains: list[GibbsChain]) -> str | None:
 def _check_sweeps(num_sweeps: int) -> None:
     """ValueError naming ``num_sweeps`` unless it is an integer >= 1 (2.5 was refused as the
     driver's "iterations", "3" by a TypeError)."""
-    integer = isinstance(num_sweeps, int | np.integer) and not isinstance(num_sweeps, bool)
-    if not integer or num_sweeps < 1:
+    if not is_integer(num_sweeps) or num_sweeps < 1:
         raise ValueError(f"num_sweeps must be >= 1 (an integer), got {num_sweeps!r}")
 
 

@@ -77,15 +77,13 @@ class LBPOptions:
         def bad(name: str, why: str) -> ValueError:
             return ValueError(f"LBPOptions.{name}={getattr(self, name)!r}: {why}")
 
-        if not (is_number(self.damping) and 0 <= self.damping < 1):
-            raise bad("damping", "must lie in [0, 1)")
         if not is_int(self.passes) or self.passes < 1:
             raise bad("passes", "must be an integer >= 1")
         if not (is_number(self.threshold) and 0 <= self.threshold < math.inf):
             raise bad("threshold", "must be a finite number >= 0")
-        # The shared options check the rest (and name the field).
+        # The shared options check the rest, damping among them (and name the field).
         try:
-            VariationalOptions(anneal_iterations=self.anneal_iterations,
+            VariationalOptions(damping=self.damping, anneal_iterations=self.anneal_iterations,
                                pi_family=self.pi_family, tolerance=self.tolerance,
                                backend=self.backend, support=self.support,
                                active_tolerance=self.active_tolerance)  # fmt: skip

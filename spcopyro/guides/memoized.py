@@ -63,7 +63,7 @@ from typing import Literal, NamedTuple
 import numpy as np
 import torch
 
-from spcopyro._util.number_checks import is_finite_number
+from spcopyro._util.number_checks import is_finite_number, is_integer
 from spcopyro._util.progress import setup_bar
 from spcopyro.config import SpCoConfig
 from spcopyro.guides.blocks import Blocks, grid_blocks
@@ -142,9 +142,9 @@ class StochasticOptions:
 
         for name in ("block_size", "blocks_per_step", "local_sweeps"):
             value = getattr(self, name)
-            if not _is_int(value) or value < 1:
+            if not is_integer(value) or value < 1:
                 raise bad(name, "must be an integer >= 1")
-        if not _is_int(self.anneal_passes) or self.anneal_passes < 0:
+        if not is_integer(self.anneal_passes) or self.anneal_passes < 0:
             raise bad("anneal_passes", "must be an integer >= 0")
         if self.order not in ("random", "raster"):
             raise bad("order", "must be 'random' or 'raster'")
@@ -175,10 +175,6 @@ def compiled_path(backend: str):  # noqa: ANN201
             raise
         return None
     return compiled
-
-
-def _is_int(value: object) -> bool:
-    return isinstance(value, (int, np.integer)) and not isinstance(value, bool)
 
 
 # ---------------------------------------------------------------------------------------------
@@ -492,7 +488,7 @@ def run_stochastic(
     options = StochasticOptions() if options is None else options
     if not isinstance(options, StochasticOptions):
         raise TypeError(f"options must be StochasticOptions, got {type(options).__name__}")
-    if not _is_int(passes) or passes < 1:
+    if not is_integer(passes) or passes < 1:
         raise ValueError(f"passes must be an integer >= 1, got {passes!r}")
     warn_unfinished_annealing(options.anneal_passes, passes, "anneal_passes", "pass", resume)
     run = drive(

@@ -118,7 +118,7 @@ from typing import Any, NamedTuple
 import numpy as np
 import torch
 
-from spcopyro._util.number_checks import is_int, is_number
+from spcopyro._util.number_checks import is_finite_number, is_int, is_number
 from spcopyro.config import SpCoConfig
 from spcopyro.guides.factors import (
     GlobalFactors,
@@ -186,10 +186,12 @@ class SparseLoopyBP:
             raise ValueError(f"passes must be an integer >= 1, got {passes!r}")
         if not is_int(support) or support < 0:
             raise ValueError(f"support must be an integer >= 0 (0: all L), got {support!r}")
-        if not 0.0 <= threshold < math.inf:
-            raise ValueError(f"threshold must be finite and >= 0, got {threshold}")
-        if not 0.0 <= active_tolerance < math.inf:
-            raise ValueError(f"active_tolerance must be finite and >= 0, got {active_tolerance}")
+        if not (is_finite_number(threshold) and threshold >= 0):
+            raise ValueError(f"threshold must be a finite number >= 0, got {threshold!r}")
+        if not (is_finite_number(active_tolerance) and active_tolerance >= 0):
+            raise ValueError(
+                f"active_tolerance must be a finite number >= 0, got {active_tolerance!r}"
+            )
         if not usable(config, data):
             raise ValueError(f"gamma * D = {config.gamma * data.neighbours.shape[1]:g} > "
                              f"{MAX_GAMMA_DEGREE:g}: use the torch backend")  # fmt: skip

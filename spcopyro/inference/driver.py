@@ -38,6 +38,7 @@ import torch
 
 from spcopyro._util.interrupts import caused_by_interrupt
 from spcopyro._util.messages import plural
+from spcopyro._util.number_checks import is_integer
 from spcopyro._util.progress import noted_bar, progress_enabled, staged
 from spcopyro.inference.schedule import annealed_gamma, converged
 
@@ -142,10 +143,9 @@ def drive(
         marginals: ``marginals(state)`` ``[N, L]``, the q(C) a Ctrl-C hands back in
             :class:`DriveInterrupted` (None: none).
     """
-    integer = isinstance(iterations, int | np.integer) and not isinstance(iterations, bool)
-    if not integer or iterations < 1:
+    if not is_integer(iterations) or iterations < 1:
         raise ValueError(f"iterations must be an integer >= 1, got {iterations!r}")
-    if not isinstance(thin, (int, np.integer)) or isinstance(thin, bool) or thin < 0:
+    if not is_integer(thin) or thin < 0:
         raise ValueError(f"thin must be an integer >= 0, got {thin!r}")
     if thin and labels is None:
         raise ValueError("thin > 0 needs labels(state) to keep")

@@ -30,6 +30,7 @@ from typing import (
 
 import numpy as np
 
+from spcopyro._util.number_checks import is_integer
 from spcopyro.config import SpCoConfig
 
 if (
@@ -224,8 +225,7 @@ class InferenceMethod(Protocol):
         options = method_options(options, self.options_type, self.title or self.name)
         check_model_data(data, config)
         # before a resumed run's count ("nothing left of the 0 asked for") or a draw names them
-        integer = isinstance(iterations, int | np.integer) and not isinstance(iterations, bool)
-        if not integer or iterations < 1:
+        if not is_integer(iterations) or iterations < 1:
             raise ValueError(f"iterations must be an integer >= 1, got {iterations!r}")
         check_generator(generator)
         if resume is not None and not self.resumable:

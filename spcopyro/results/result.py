@@ -27,6 +27,7 @@ import numpy as np
 
 from spcopyro._util.messages import with_article
 from spcopyro._util.npz import write_npz
+from spcopyro._util.number_checks import is_integer
 from spcopyro._util.outputs import DAMAGED_FILE_ERRORS, read_npz
 from spcopyro.config import IMAGES, WORDS, DataPreparation, SpCoConfig
 from spcopyro.inference.protocol import InferenceOutput, Trace
@@ -79,7 +80,7 @@ _OPTIONAL_ARRAYS = (
 def _count(n: int) -> int:
     """How many items a list asks for, an integer >= 0, or ValueError (``n=-1`` gave every
     item but the last, a slice's reading of it)."""
-    if not isinstance(n, int | np.integer) or isinstance(n, bool) or n < 0:
+    if not is_integer(n) or n < 0:
         raise ValueError(f"n must be an integer >= 0, got {n!r}")
     return int(n)
 
@@ -282,8 +283,7 @@ class SpCoResult:
     def _concept(self, concept: int) -> int:
         """``concept`` as an index 0..L-1, or ValueError (-1 read the last concept's row)."""
         count = self.config.num_concepts
-        integer = isinstance(concept, int | np.integer) and not isinstance(concept, bool)
-        if not integer or not 0 <= concept < count:
+        if not is_integer(concept) or not 0 <= concept < count:
             raise ValueError(f"concept must be an integer in 0..{count - 1}, got {concept!r}")
         return int(concept)
 

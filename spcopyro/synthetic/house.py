@@ -38,12 +38,13 @@ from pathlib import Path
 import numpy as np
 from scipy import ndimage
 
+from spcopyro._util.number_checks import is_integer
 from spcopyro.data.dataset import House, save_house
 from spcopyro.data.observations import Observations
 from spcopyro.maps.grid import OccupancyGrid
 from spcopyro.synthetic.floor_plan import FloorPlan, _region_categories, floor_plan
 from spcopyro.synthetic.lexicon import _OBJECT_TEMPLATES, _PLACE_TEMPLATES, lexicon_for
-from spcopyro.synthetic.spec import HouseSpec, _is_int
+from spcopyro.synthetic.spec import HouseSpec
 
 __all__ = ["make_house", "write_synthetic"]
 
@@ -286,7 +287,7 @@ def make_house(seed: int = 0, spec: HouseSpec | None = None, name: str = "synthe
         spec = HouseSpec()
     if not isinstance(spec, HouseSpec):
         raise TypeError(f"spec must be a HouseSpec or None, got {type(spec).__name__}")
-    if not _is_int(seed) or seed < 0:
+    if not is_integer(seed) or seed < 0:
         raise ValueError(f"seed must be a non-negative integer, got {seed!r}")
     rng = np.random.default_rng(seed)
 

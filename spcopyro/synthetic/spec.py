@@ -26,6 +26,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from spcopyro._util.number_checks import is_integer
 from spcopyro.synthetic.lexicon import DEFAULT_CATEGORY_NAMES, is_category_token
 
 __all__ = ["HouseSpec", "HouseSpecError"]
@@ -109,7 +110,7 @@ class HouseSpec:
             )
         if not (
             len(self.doorway_width) == 2
-            and all(_is_int(v) for v in self.doorway_width)
+            and all(is_integer(v) for v in self.doorway_width)
             and 2 <= self.doorway_width[0] <= self.doorway_width[1]
         ):
             # Width 2 at least: a later wall may end next to one doorway cell, never two.
@@ -250,7 +251,7 @@ class HouseSpec:
         inner = max(height - 2 * margin - 2, 0) * max(width - 2 * margin - 2, 0)
         num_rooms = changes.get("num_rooms", max(1, inner // _DEFAULT_ROOM_AREA))
         fields: dict[str, object] = dict(height=height, width=width, num_rooms=num_rooms)
-        if _is_int(num_rooms):
+        if is_integer(num_rooms):
             fields["num_open_plan"] = max(1, num_rooms // 5) if num_rooms > 1 else 0  # type: ignore[operator]
         fields.update(changes)
         return cls(**fields)  # type: ignore[arg-type]
@@ -369,12 +370,8 @@ PUBLIC_LIKE_FIELDS: dict[str, object] = dict(
 """The fields of :meth:`HouseSpec.public_like` (see there for the measured statistics)."""
 
 
-def _is_int(value: object) -> bool:
-    return isinstance(value, int | np.integer) and not isinstance(value, bool)
-
-
 def _int_at_least(field: str, value: object, low: int) -> None:
-    if not _is_int(value) or value < low:  # type: ignore[operator]
+    if not is_integer(value) or value < low:  # type: ignore[operator]
         raise HouseSpecError(f"HouseSpec.{field} must be an integer >= {low}, got {value!r}")
 
 

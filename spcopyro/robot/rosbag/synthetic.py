@@ -37,6 +37,7 @@ import cv2
 import numpy as np
 
 from spcopyro._util.interrupts import remove_tree
+from spcopyro._util.number_checks import is_integer
 from spcopyro._util.outputs import check_folder_path
 from spcopyro.data.dataset import House
 from spcopyro.maps.map_server import save_map
@@ -343,10 +344,7 @@ def write_synthetic_bags(
     if image_format not in ("raw", "jpeg", "png"):
         raise ValueError(f"image_format must be raw, jpeg or png, got {image_format!r}")
     size = tuple(image_size)
-    if len(size) != 2 or not all(
-        isinstance(v, int | np.integer) and not isinstance(v, bool) and 1 <= v <= MAX_IMAGE_SIDE
-        for v in size
-    ):
+    if len(size) != 2 or not all(is_integer(v) and 1 <= v <= MAX_IMAGE_SIDE for v in size):
         raise ValueError(
             f"image_size must be two integers in 1..{MAX_IMAGE_SIDE} (H, W), got {image_size!r}"
         )
