@@ -331,6 +331,26 @@ def test_bad_options_and_inputs_are_refused():
 
 
 @needs_numba
+@pytest.mark.parametrize(
+    "argument, message",
+    [
+        ("support", r"support must be an integer >= 0 \(0: all L concepts\)"),
+        ("threshold", r"threshold must be a number in \[0, 1\)"),
+        ("active_tolerance", "active_tolerance must be a finite number >= 0"),
+    ],
+)
+@pytest.mark.parametrize("flag", [True, False])
+def test_the_sparse_mean_field_refuses_a_bool_for_a_count_or_a_number(argument, message, flag):
+    """SparseMeanField (built by a library caller, not only from checked VariationalOptions)
+    compared only bounds: ``support=True`` was 1 concept, ``threshold=True`` failed only the
+    bound (False passed as 0), ``active_tolerance=True`` was 1."""
+    data, cfg, _ = problem("dp")
+    q = initial_q(data, cfg, torch.Generator().manual_seed(0))
+    with pytest.raises(ValueError, match=f"{message}, got {flag!r}"):
+        numba_cavi.SparseMeanField(q, data, cfg, **{argument: flag})
+
+
+@needs_numba
 def test_defaults_reach_a_high_ari_on_an_easy_synthetic_house():
     """The default options (numba backend, exact but for masses < 1e-4) recover the rooms of
     a synthetic house whose data have a say (the released code's values, gamma 3; ARI 0.93

@@ -16,6 +16,7 @@ from pathlib import Path
 import numpy as np
 import torch
 
+from spcopyro._util.number_checks import is_integer
 from spcopyro._util.progress import setup_bar
 from spcopyro._util.timings import timed
 from spcopyro.config import SpCoSettings
@@ -166,10 +167,7 @@ def marginal_thin(sweeps: int, marginal_samples: int) -> int:
     """Every how many iterations to keep a label map so that about ``marginal_samples`` fall in
     the second half of ``sweeps`` (0: keep none)."""
     # A negative count made thin 1 (every sweep kept); 2.5 failed naming thin, not this.
-    integer = isinstance(marginal_samples, int | np.integer) and not isinstance(
-        marginal_samples, bool
-    )
-    if not integer or marginal_samples < 0:
+    if not is_integer(marginal_samples) or marginal_samples < 0:
         raise ValueError(f"marginal_samples must be an integer >= 0, got {marginal_samples!r}")
     return max(1, sweeps // (2 * marginal_samples)) if marginal_samples else 0
 

@@ -28,6 +28,7 @@ import torch
 
 from spcopyro import __version__
 from spcopyro._util.messages import with_article
+from spcopyro._util.number_checks import is_integer
 from spcopyro._util.random_draws import check_seed
 from spcopyro._util.threads import (
     AUTO,
@@ -342,7 +343,7 @@ def fit_house_chains(
             f"({', '.join(SAMPLERS)}) keeps: it needs marginal_samples > 0 (method {method!r}, "
             f"marginal_samples {marginal_samples})"
         )
-    if isinstance(sweeps, bool) or not isinstance(sweeps, int | np.integer) or sweeps < 1:
+    if not is_integer(sweeps) or sweeps < 1:
         raise ValueError(f"sweeps must be a positive integer or 'auto', got {sweeps!r}")
     if isinstance(seeds, str) or len(seeds) == 0:
         raise ValueError(f"seeds must name at least one chain, got {seeds!r}")

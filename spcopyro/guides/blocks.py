@@ -22,6 +22,7 @@ from typing import NamedTuple
 import numpy as np
 import torch
 
+from spcopyro._util.number_checks import is_integer
 from spcopyro.model import ModelData
 
 GRID_OFFSETS = ((-1, 0), (1, 0), (0, -1), (0, 1), (-1, -1), (-1, 1), (1, -1), (1, 1))
@@ -122,7 +123,7 @@ class Blocks(NamedTuple):
 def tile_ids(coordinates: np.ndarray, size: int) -> np.ndarray:
     """[N] int64 block id of each cell: the ``size x size`` tile holding its coordinates, the
     non-empty tiles numbered in raster order from 0."""
-    if not isinstance(size, (int, np.integer)) or isinstance(size, bool) or size < 1:
+    if not is_integer(size) or size < 1:
         raise ValueError(f"block size must be an integer >= 1, got {size!r}")
     tile = coordinates // size  # [N, 2]
     key = tile[:, 0] * (int(tile[:, 1].max(initial=0)) + 1) + tile[:, 1]  # [N]

@@ -102,6 +102,7 @@ from typing import TYPE_CHECKING, NamedTuple
 import numpy as np
 import torch
 
+from spcopyro._util.number_checks import is_finite_number, is_int, is_number
 from spcopyro.config import SpCoConfig
 from spcopyro.gibbs.numba_plan import flat_plan
 from spcopyro.gibbs.state import SweepPlan
@@ -205,12 +206,16 @@ class SparseMeanField:
         N, L = data.num_free, config.num_concepts
         if tuple(q.shape) != (N, L):
             raise ValueError(f"q must be [{N}, {L}], got {tuple(q.shape)}")
-        if support < 0:
-            raise ValueError(f"support must be >= 0 (0: all L concepts), got {support}")
-        if not 0.0 <= threshold < 1.0:
-            raise ValueError(f"threshold must lie in [0, 1), got {threshold}")
-        if not 0.0 <= active_tolerance < np.inf:
-            raise ValueError(f"active_tolerance must be finite and >= 0, got {active_tolerance}")
+        if not is_int(support) or support < 0:
+            raise ValueError(
+                f"support must be an integer >= 0 (0: all L concepts), got {support!r}"
+            )
+        if not (is_number(threshold) and 0.0 <= threshold < 1.0):
+            raise ValueError(f"threshold must be a number in [0, 1), got {threshold!r}")
+        if not (is_finite_number(active_tolerance) and active_tolerance >= 0):
+            raise ValueError(
+                f"active_tolerance must be a finite number >= 0, got {active_tolerance!r}"
+            )
         self.data, self.config = data, config
         self.threshold, self.damping = float(threshold), float(damping)
         self.flat = flat_plan(plan, data)

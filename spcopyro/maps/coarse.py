@@ -36,6 +36,7 @@ from typing import TypeVar
 
 import numpy as np
 
+from spcopyro._util.number_checks import is_integer
 from spcopyro.maps.grid import (
     FREE,
     OCCUPIED,
@@ -90,7 +91,7 @@ def coarsen_grid(grid: OccupancyGrid, factor: int) -> OccupancyGrid:
     weakly, so no cycle keeps either alive): a fit asks for its model grid more than once (the
     command, the refinement's decision), and the coarse grid keeps what was computed on it
     (:func:`free_block_of_map_cells`)."""
-    if isinstance(factor, bool) or not isinstance(factor, int | np.integer) or factor < 1:
+    if not is_integer(factor) or factor < 1:
         raise ValueError(f"factor must be an integer >= 1, got {factor!r}")
     if factor == 1:
         return grid

@@ -37,6 +37,7 @@ from typing import Any
 
 import numpy as np
 
+from spcopyro._util.number_checks import is_integer
 from spcopyro.maps.regions import region_contacts
 
 __all__ = [
@@ -157,7 +158,7 @@ def distinct_colours(n: int) -> np.ndarray:
     for 120); ``n`` is limited to the candidates (18 levels per channel, lightness L* 40-90,
     chroma C* at least 15).
     """
-    if isinstance(n, bool) or not isinstance(n, (int, np.integer)) or n < 0:
+    if not is_integer(n) or n < 0:
         raise ValueError(f"n must be a non-negative integer, got {n!r}")
     grid, lab = _candidates()  # [M, 3] uint8, [M, 3] Lab
     if n > len(grid):

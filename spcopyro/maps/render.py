@@ -18,6 +18,7 @@ from typing import Any
 
 import numpy as np
 
+from spcopyro._util.number_checks import is_integer
 from spcopyro.maps.grid import FREE, OCCUPIED, UNKNOWN, OccupancyGrid
 from spcopyro.maps.map_image import _read_image, _write_image
 from spcopyro.maps.map_server import _write_map_yaml, _yaml_target
@@ -61,7 +62,7 @@ def label_colours(num_labels: int) -> np.ndarray:
     levels. None is black, white or the unknown grey (205, 205, 205) used by
     :func:`render_labels`.
     """
-    if isinstance(num_labels, bool) or not isinstance(num_labels, (int, np.integer)):
+    if not is_integer(num_labels):
         raise ValueError(f"num_labels must be an integer, got {num_labels!r}")
     num_labels = int(num_labels)
     if not 0 <= num_labels <= 2**24 - 3:

@@ -63,6 +63,7 @@ import numpy as np
 import torch
 
 from spcopyro._util.messages import echo, listed, warn_once
+from spcopyro._util.number_checks import is_integer
 from spcopyro._util.random_draws import sample_log_dirichlet
 from spcopyro._util.threads import AUTO, resolve_threads, torch_threads
 from spcopyro.config import IMAGES, WORDS, SpCoSettings
@@ -419,7 +420,7 @@ def fit_update(
         FitInterrupted: Ctrl-C stopped the sweeps or iterations; its ``where`` says how far
             (e.g. ``"chain 1 of 2, 120 of 300 sweeps done"``), and nothing is kept.
     """
-    if isinstance(sweeps, bool) or not isinstance(sweeps, int | np.integer) or sweeps < 1:
+    if not is_integer(sweeps) or sweeps < 1:
         raise ValueError(f"sweeps must be a positive integer, got {sweeps!r}")
     if len(seeds) == 0:
         raise ValueError("seeds must name at least one chain")
