@@ -1,8 +1,10 @@
-"""Shared fixtures: a fixed seed per test, the public dataset (skipped when absent) and the
-Gibbs sweep backends (each test taking ``backend`` runs once per backend)."""
+"""Shared fixtures: a fixed seed per test, the public dataset (skipped when absent), the
+Gibbs sweep backends (each test taking ``backend`` runs once per backend) and the benchmark
+tests' imported scripts (``script``, ``keep_torch_threads``)."""
 
 from __future__ import annotations
 
+import importlib
 import logging
 import os
 import signal
@@ -13,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import torch
+from benchmark_setup import BENCHMARKS
 
 from spcopyro._util.threads import torch_threads
 from spcopyro.data import find_dataset_root
@@ -47,7 +50,7 @@ def _fixed_seed():
 @pytest.fixture(autouse=True)
 def _logging_restored():
     """The "spcopyro" logger's level and logging's global disable as they were before the test:
-    a benchmark script's main() (tests/test_benchmarks.py) quiets them for its tables, and a
+    a benchmark script's main() (tests/test_benchmarks_*.py) quiets them for its tables, and a
     later test's caplog then caught nothing (the suite's result depended on its order)."""
     logger = logging.getLogger("spcopyro")
     level, disabled = logger.level, logging.root.manager.disable
@@ -66,7 +69,7 @@ def _environment_restored():
     """The package's environment variables as they were before the test: a benchmark main()
     run in process once left ``CI=1`` (its ``os.environ.setdefault``), which switched every later
     test's progress bars off (test_postprocessing_progress failed in the whole suite, passed
-    alone); tests/test_benchmarks.py's ``script`` fixture now sets it through monkeypatch. Other
+    alone); the ``script`` fixture (below) now sets it through monkeypatch. Other
     variables are left alone: importing torch or numba sets some of its own (KMP_*, ...)."""
     before = _package_environment()
     yield
@@ -179,3 +182,23 @@ def no_download(monkeypatch, tmp_path):
         raise AssertionError(f"a test tried to download {url}")
 
     monkeypatch.setattr(torch.hub, "download_url_to_file", refuse)
+
+
+@pytest.fixture
+def script(monkeypatch):
+    """Import a benchmark script by name (``script("gibbs")``). ``CI=1`` as the scripts' own
+    ``os.environ.setdefault("CI", "1")`` would set it (online_update.py, stochastic_vi.py: no bars
+    in them or their children), but through monkeypatch, so that it ends with the test."""
+    monkeypatch.syspath_prepend(str(BENCHMARKS))
+    monkeypatch.setenv("CI", "1")
+    return importlib.import_module
+
+
+@pytest.fixture
+def keep_torch_threads():
+    """Some scripts set torch's thread count before they check their houses: restore it."""
+    import torch
+
+    threads = torch.get_num_threads()
+    yield
+    torch.set_num_threads(threads)

@@ -3,6 +3,8 @@ they run, and a LocalCluster for a study too short to start one by itself."""
 
 from __future__ import annotations
 
+from pathlib import Path
+
 import pytest
 
 
@@ -39,6 +41,39 @@ def small_house_toml(table: str = "small", **fields: object) -> str:
     lines = [f"[data.{table}]"]
     lines += [f"{key} = {json.dumps(value)}" for key, value in small_house(**fields).items()]
     return "\n".join(lines) + "\n"
+
+
+TINY = """
+[study]
+name = "tiny"
+seeds = 2
+sweeps = 8
+baselines = ["F-geometry"]
+
+[variants.og3]
+preset = "original-code"
+gamma = 3.0
+
+[variants.dp]
+preset = "paper-dp"
+
+""" + small_house_toml(heldout=True)
+"""The tiny study of tests/test_study_runs.py, test_study_spec.py and test_study_qa.py: two
+variants (8 sweeps) and a baseline at 2 seeds, 6 cells on :func:`small_house`, held out."""
+
+TINY_DICT = {
+    "study": {"name": "tiny", "seeds": 2, "sweeps": 8, "baselines": ["F-geometry"]},
+    "variants": {"og3": {"preset": "original-code", "gamma": 3.0}, "dp": {"preset": "paper-dp"}},
+    "data": {"small": small_house(heldout=True)},
+}  # fmt: skip
+""":data:`TINY` as the Python dict ``study_from_dict`` reads."""
+
+
+def _write(tmp_path: Path, text: str = TINY, name: str = "tiny.toml") -> Path:
+    """``text`` (the tiny study's file) written as ``tmp_path / name``: its path."""
+    path = tmp_path / name
+    path.write_text(text)
+    return path
 
 
 def one_variant_study(name: str, seeds: int = 2, sweeps: int = 2, **house: object):

@@ -16,10 +16,10 @@ import math
 import numpy as np
 import pytest
 import torch
+from benchmark_setup import run_benchmark
 from gibbs_problems import config, tiny_grid
 from scipy import stats
 from statistical_checks import assert_conditionals_match_model, backend_samplers, model_log_density
-from test_benchmarks import run_benchmark
 
 from spcopyro.cli.main import main
 from spcopyro.config import DataPreparation, preset

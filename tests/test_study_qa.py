@@ -1,7 +1,7 @@
 """`spcopyro study` as a user meets it: stopping it (Ctrl-C in a terminal, SIGTERM), redrawing
 the report of a stopped run, and a machine without the ``study`` extra (dask.distributed).
 
-The tiny study of tests/test_study.py (6 cells of 8 sweeps); numbers are never checked here.
+The tiny study of tests/study_setup.py (6 cells of 8 sweeps); numbers are never checked here.
 """
 
 from __future__ import annotations
@@ -12,8 +12,7 @@ import sys
 from pathlib import Path
 
 import pytest
-from study_setup import on_a_cluster
-from test_study import _write
+from study_setup import _write, on_a_cluster
 
 from spcopyro.cli.main import main
 from spcopyro.study import evaluate, run
