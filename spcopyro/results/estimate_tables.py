@@ -39,7 +39,7 @@ def _codes_and_values(labels: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
 
 
 class _Samples(NamedTuple):
-    codes: np.ndarray  # [S, N] each sample's labels renamed 0..J_s-1
+    codes: np.ndarray  # [S, N] each sample's labels renamed 0..J_s-1 (uint8 to 256 labels)
     sizes: tuple[int, ...]  # J_s
     constant: float  # sum_s F(b^s) / S
     signatures: np.ndarray  # [S, U] the distinct columns of codes (cells labelled alike in all)
@@ -76,7 +76,9 @@ def _pairs(estimate: np.ndarray, prepared: _Samples) -> _Pairs:
     small = estimate.astype(_radix_dtype(estimate), copy=False)[prepared.by_column]  # [N]
     by_cluster = np.argsort(small, kind="stable")  # [N]
     order = prepared.by_column[by_cluster]  # [N] cells by (cluster, column, index)
-    ordered = estimate[order] * width + prepared.signature[order]  # [N] their keys, ascending
+    # [N] their keys, ascending; int64 whatever the estimate's dtype (a row of the samples'
+    # uint8 codes times U wrapped round)
+    ordered = estimate[order].astype(np.int64, copy=False) * width + prepared.signature[order]
     first = np.empty(ordered.shape[0], dtype=bool)  # [N] a cell opens a pair
     first[0] = True
     np.not_equal(ordered[1:], ordered[:-1], out=first[1:])
