@@ -43,7 +43,7 @@ def _rooms(seed: int, cells: int, count: int, labels: int = 120) -> np.ndarray:
         (120, 500, np.uint8),  # the default preset's L
         (256, 500, np.uint8),
         (257, 500, np.uint16),
-        (100_000, 300, np.uint16),  # large ids, few cells: at most 300 distinct labels a row
+        (100_000, 300, np.int64),  # the bound is max label + 1, not the 300 cells
         (100_000, 70_000, np.int64),
     ],
 )
@@ -94,7 +94,7 @@ def test_narrow_codes_give_the_int64_codes_estimate(monkeypatch, loss, labels, m
     cell_words[::97] = 1.0
     found = point_estimate(samples, loss, max_clusters=max_clusters, cell_words=cell_words)
     assert _prepare(samples, loss).codes.dtype == (np.uint8 if labels <= 256 else np.uint16)
-    monkeypatch.setattr(pe, "_code_dtype", lambda samples: np.int64)  # as before
+    monkeypatch.setattr(pe, "_radix_dtype", lambda samples: np.int64)  # as before
     wide = point_estimate(samples, loss, max_clusters=max_clusters, cell_words=cell_words)
     assert found.labels.dtype == wide.labels.dtype == np.int64
     np.testing.assert_array_equal(found.labels, wide.labels)

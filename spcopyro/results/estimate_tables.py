@@ -62,7 +62,8 @@ class _Pairs(NamedTuple):
 def _radix_dtype(estimate: np.ndarray) -> type:
     """The narrowest dtype that holds the clusters ``estimate`` [N] (non-negative) for
     :func:`_pairs`' stable sort: uint8 up to 256 clusters, uint16 up to 65,536 (numpy's stable
-    sort of these is a radix sort), else int64."""
+    sort of these is a radix sort), else int64. Of any shape: the point estimate's ``_prepare``
+    holds the samples' [S, N] codes in the dtype it gives for the samples' labels."""
     clusters = int(estimate.max()) + 1 if estimate.size else 1
     return np.uint8 if clusters <= 256 else np.uint16 if clusters <= 65536 else np.int64
 

@@ -95,6 +95,7 @@ from spcopyro.results.estimate_tables import (
     _moved_tables,
     _Pairs,
     _pairs,
+    _radix_dtype,
     _sample_pairs,
     _sample_tables,
     _Samples,
@@ -148,20 +149,12 @@ def pair_loss(first: np.ndarray, second: np.ndarray, loss: str) -> float:
     return float(value / (n * n if loss == "binder" else n))
 
 
-def _code_dtype(samples: np.ndarray) -> type:
-    """The narrowest dtype that holds the codes :func:`compact` gives each row of ``samples``
-    [S, N] (non-negative; each code below its row's number of distinct labels, so below
-    min(N, max label + 1)): uint8 up to 256, uint16 up to 65,536, else int64. Each code is
-    read as a number only in sums with int64 offsets, so every table, loss and estimate is the
-    same as with int64 codes; held at 1 byte a cell and sample where they were 8 (a fit's 50
-    samples of 3.87 million cells, L = 120: 0.19 GB where int64 held 1.55 GB)."""
-    bound = min(samples.shape[1], int(samples.max()) + 1)  # distinct labels of a row, at most
-    return np.uint8 if bound <= 256 else np.uint16 if bound <= 65536 else np.int64
-
-
 def _prepare(samples: np.ndarray, loss: str, bar=None) -> _Samples:
-    # [S, N] filled in place (no 2nd copy), in the narrowest dtype of the codes (_code_dtype)
-    stacked = np.empty(samples.shape, dtype=_code_dtype(samples))
+    # [S, N] filled in place (no 2nd copy). Each code is below its row's number of distinct
+    # labels, so below max label + 1: _radix_dtype's uint8 to 256, uint16 to 65,536, else int64
+    # (a fit's 50 samples of 3.87 million cells, L = 120: 0.19 GB where int64 held 1.55 GB).
+    # Codes are read as numbers only in sums with int64 offsets: the same tables and estimate.
+    stacked = np.empty(samples.shape, dtype=_radix_dtype(samples))
     sizes, constant = [], 0.0
     for row, sample in zip(stacked, samples, strict=True):
         row[:], k = compact(sample)
