@@ -60,6 +60,10 @@ def test_codes_take_the_narrowest_dtype_and_keep_their_values(labels, cells, dty
         np.testing.assert_array_equal(codes.astype(np.int64), expected)
 
 
+AREA = 1e-4
+"""m^2 of a cell (0.01 m): 0.5 % of these maps' cells is under SPECK_AREA."""
+
+
 def test_point_estimate_holds_no_int64_copy_of_the_samples():
     """The search's peak allocation stays below 3/4 of the [S, N] int64 codes it held (S = 50, a
     fit's default: 11.3 MB at the peak, 32.3 MB with int64 codes)."""
@@ -70,7 +74,7 @@ def test_point_estimate_holds_no_int64_copy_of_the_samples():
     cell_words[::500] = 1.0
     tracemalloc.start()
     try:
-        point_estimate(samples, "vi", max_clusters=120, cell_words=cell_words)
+        point_estimate(samples, "vi", max_clusters=120, cell_words=cell_words, cell_area=AREA)
         peak = tracemalloc.get_traced_memory()[1]
     finally:
         tracemalloc.stop()
@@ -92,10 +96,14 @@ def test_narrow_codes_give_the_int64_codes_estimate(monkeypatch, loss, labels, m
         samples[:, :256] = np.arange(256)  # every row uses all 256 labels: J_s = 256
     cell_words = np.zeros(samples.shape[1])
     cell_words[::97] = 1.0
-    found = point_estimate(samples, loss, max_clusters=max_clusters, cell_words=cell_words)
+    found = point_estimate(
+        samples, loss, max_clusters=max_clusters, cell_words=cell_words, cell_area=AREA
+    )
     assert _prepare(samples, loss).codes.dtype == (np.uint8 if labels <= 256 else np.uint16)
     monkeypatch.setattr(pe, "_radix_dtype", lambda samples: np.int64)  # as before
-    wide = point_estimate(samples, loss, max_clusters=max_clusters, cell_words=cell_words)
+    wide = point_estimate(
+        samples, loss, max_clusters=max_clusters, cell_words=cell_words, cell_area=AREA
+    )
     assert found.labels.dtype == wide.labels.dtype == np.int64
     np.testing.assert_array_equal(found.labels, wide.labels)
     assert found[1:] == wide[1:]  # the losses, to the bit, and the specks joined

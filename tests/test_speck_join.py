@@ -28,6 +28,9 @@ from spcopyro.results.point_estimate import (
 from spcopyro.results.speck_join import join_specks, speck_clusters
 
 ROOM = 200
+CELL = 0.0025
+"""m^2 of a cell (0.05 m map cells): 0.5 % of these maps' cells is under SPECK_AREA, so the
+share alone decides here."""
 
 
 def _doorway(drops: int = 9, first: int = 7, samples: int = 20) -> np.ndarray:
@@ -51,7 +54,7 @@ def test_a_doorway_droplet_is_joined_to_the_room_it_shares_most_samples_with(los
     samples = _doorway()
     raw = point_estimate(samples, loss)
     assert len({raw.labels[0], raw.labels[ROOM], raw.labels[ROOM + 1]}) == 3  # kept apart
-    found = point_estimate(samples, loss, cell_words=_words())
+    found = point_estimate(samples, loss, cell_words=_words(), cell_area=CELL)
     assert found.labels[ROOM] == found.labels[0] != found.labels[ROOM + 1]  # 35 % against 20 %
     assert compact(found.labels)[1] == 2
     assert (found.speck_cells, found.specks) == (1, 1)
@@ -59,7 +62,7 @@ def test_a_doorway_droplet_is_joined_to_the_room_it_shares_most_samples_with(los
     assert found.loss_with_specks == raw.expected_loss < found.expected_loss
     assert found.best_sample_loss == raw.best_sample_loss
     other = _doorway(first=5)  # 25 % with room 0, 30 % with room 1: room 1's
-    joined = point_estimate(other, loss, cell_words=_words()).labels
+    joined = point_estimate(other, loss, cell_words=_words(), cell_area=CELL).labels
     assert joined[ROOM] == joined[ROOM + 1] != joined[0]
 
 
@@ -67,11 +70,13 @@ def test_a_doorway_droplet_is_joined_to_the_room_it_shares_most_samples_with(los
 def test_a_cluster_where_a_word_was_heard_is_kept_however_small(loss):
     samples = _doorway()
     assert 1 < SPECK_SHARE * samples.shape[1]  # one cell would be a speck
-    found = point_estimate(samples, loss, cell_words=_words(ROOM))
+    found = point_estimate(samples, loss, cell_words=_words(ROOM), cell_area=CELL)
     raw = point_estimate(samples, loss)
     np.testing.assert_array_equal(found.labels, raw.labels)
     assert found.speck_cells == 0 and found.expected_loss == raw.expected_loss
-    quiet = point_estimate(samples, loss, cell_words=_words(ROOM + 1))  # heard next door only
+    quiet = point_estimate(
+        samples, loss, cell_words=_words(ROOM + 1), cell_area=CELL
+    )  # heard next door only
     assert quiet.speck_cells == 1
 
 
@@ -84,12 +89,12 @@ def test_a_cluster_that_heard_under_a_tenth_of_an_utterance_is_joined(loss):
     samples = _doorway()
     raw = point_estimate(samples, loss)
     faint = _words() + 0.013  # [N] every cell hears a little
-    found = point_estimate(samples, loss, cell_words=faint)
+    found = point_estimate(samples, loss, cell_words=faint, cell_area=CELL)
     assert (found.speck_cells, found.specks) == (1, 1)
     assert found.labels[ROOM] == found.labels[0] != found.labels[ROOM + 1]
     at_rule = _words()
     at_rule[ROOM] = SPECK_WORDS  # 0.1 utterances: no speck
-    kept = point_estimate(samples, loss, cell_words=at_rule)
+    kept = point_estimate(samples, loss, cell_words=at_rule, cell_area=CELL)
     np.testing.assert_array_equal(kept.labels, raw.labels)
     assert kept.speck_cells == 0
     pair = _rooms_with_droplets(0)  # the door's 2-cell droplet: cells 139, 140
@@ -97,9 +102,35 @@ def test_a_cluster_that_heard_under_a_tenth_of_an_utterance_is_joined(loss):
     words[[10, 150, 300]] = 2.0
     codes, k = compact(point_estimate(pair, loss).labels)
     door = codes[139]
-    assert np.count_nonzero(codes == door) == 2 and speck_clusters(codes, k, words)[door]
+    assert np.count_nonzero(codes == door) == 2 and speck_clusters(codes, k, words, CELL)[door]
     words[[139, 140]] = 0.05  # 0.1 heard by the pair
-    assert not speck_clusters(codes, k, words)[door]
+    assert not speck_clusters(codes, k, words, CELL)[door]
+
+
+@pytest.mark.parametrize("loss", LOSSES)
+def test_a_cluster_of_half_a_square_metre_or_more_is_kept_however_small_its_share(loss):
+    """On a big house a room where no word was said holds under 0.5 % of the free cells: the
+    share alone called it a speck and ``vi`` joined it (79,210 cells of a 1.94-million-cell
+    house). The door's 2-cell cluster here holds 0.48 % of the cells and hears no word: a speck
+    on cells of 0.2499 m^2 (0.4998 m^2), none on cells of 0.25 m^2 (0.5 m^2, SPECK_AREA): kept,
+    the search's estimate to the bit."""
+    pair = _rooms_with_droplets(0)  # the door's 2-cell droplet: cells 139, 140
+    words = np.zeros(pair.shape[1])
+    words[[10, 150, 300]] = 2.0  # a word heard in each room, none at the door
+    raw = point_estimate(pair, loss)
+    codes, k = compact(raw.labels)
+    door = codes[139]
+    assert np.count_nonzero(codes == door) == 2 < SPECK_SHARE * pair.shape[1]
+    assert speck_clusters(codes, k, words, 0.2499)[door]
+    assert not speck_clusters(codes, k, words, 0.25).any()
+    joined = point_estimate(pair, loss, cell_words=words, cell_area=0.2499)
+    assert joined.speck_cells == 2 and joined.labels[139] != raw.labels[139]
+    kept = point_estimate(pair, loss, cell_words=words, cell_area=0.25)
+    assert (kept.speck_cells, kept.specks) == (0, 0)
+    np.testing.assert_array_equal(kept.labels, raw.labels)
+    assert kept.expected_loss == raw.expected_loss
+    with pytest.raises(ValueError, match="cell_area"):
+        point_estimate(pair, loss, cell_words=words)
 
 
 def _rooms_with_droplets(seed: int, samples: int = 16, room: int = 140) -> np.ndarray:
@@ -135,18 +166,18 @@ def test_no_speck_remains_and_the_raw_estimate_is_todays(loss, seed):
     words[[10, 150, 300]] = 2.0  # a word heard in each room, none at the door
     raw = point_estimate(samples, loss)
     assert _digest(raw.labels) == RAW_DIGESTS[seed]
-    assert speck_clusters(*compact(raw.labels), words).sum() == 1  # the door's 2 cells
-    found = point_estimate(samples, loss, cell_words=words)
+    assert speck_clusters(*compact(raw.labels), words, CELL).sum() == 1  # the door's 2 cells
+    found = point_estimate(samples, loss, cell_words=words, cell_area=CELL)
     codes, k = compact(found.labels)
-    assert not speck_clusters(codes, k, words).any() and k == 3
+    assert not speck_clusters(codes, k, words, CELL).any() and k == 3
     assert (found.speck_cells, found.specks) == (2, 1)
     assert found.expected_loss == pytest.approx(expected_loss(found.labels, samples, loss), 1e-12)
     codes, k = compact(raw.labels)
-    joined = join_specks(codes, k, _prepare(samples, loss), loss, words)
+    joined = join_specks(codes, k, _prepare(samples, loss), loss, words, CELL)
     np.testing.assert_array_equal(compact(joined.estimate)[0], found.labels)
     change = expected_loss(joined.estimate, samples, loss) - raw.expected_loss
     assert joined.change == pytest.approx(change, rel=1e-9)  # the moves' exact Delta_i, summed
-    kept = ~speck_clusters(codes, k, words)[codes]  # [N] the cells of no speck
+    kept = ~speck_clusters(codes, k, words, CELL)[codes]  # [N] the cells of no speck
     assert pair_loss(raw.labels[kept], found.labels[kept], loss) == 0.0  # their partition
     output = _output(samples)
     reported = with_point_estimate(output, samples, f"{loss}-specks", 25)
@@ -164,7 +195,7 @@ def test_the_reported_estimate_records_the_joins_and_its_agreement():
     output = _output(samples)
     with pytest.raises(ValueError, match="cell_words"):
         with_point_estimate(output, samples, "vi", 25)
-    reported = with_point_estimate(output, samples, "vi", 25, cell_words=_words())
+    reported = with_point_estimate(output, samples, "vi", 25, cell_words=_words(), cell_area=CELL)
     raw = point_estimate(samples, "vi")
     options = reported.options
     assert options["point_estimate"] == "vi"

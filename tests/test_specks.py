@@ -139,7 +139,8 @@ def test_fit_counts_the_specks_among_the_concepts_in_use(tmp_path, capsys):
     text = capsys.readouterr().out
     concepts = json.loads((out / "concepts.json").read_text())
     free = sum(c["cells"] for c in concepts)
-    specks = sum(is_speck(c["cells"], c["words_heard"], free) for c in concepts)
+    area = SpCoResult.load(out).grid.resolution ** 2  # m^2 of one of the labels' cells
+    specks = sum(is_speck(c["cells"], c["words_heard"], free, area) for c in concepts)
     assert specks > 0  # the test would say nothing without one
     (line,) = [s for s in text.splitlines() if s.startswith("fitted ")]
     assert line.endswith(f"; {len(concepts)} concepts in use ({specks} of them specks)"), line
@@ -173,10 +174,12 @@ def test_a_concept_that_heard_under_a_tenth_of_an_utterance_is_a_speck(capsys):
     from spcopyro.results.specks import speck_concepts
 
     assert (SPECK_WORDS, SPECK_SHARE) == (0.1, 0.005)
-    assert is_speck(1, 0.013, 1000) and is_speck(4, 0.0999, 1000) and is_speck(1, 0.0, 1000)
-    assert not is_speck(1, 0.1, 1000) and not is_speck(2, 0.3, 1000)  # several at one spot
-    assert not is_speck(5, 0.0, 1000)  # 0.5 % of the free cells: no speck
-    assert not is_speck(1, None, 1000)  # a result that does not know its counts
+    a = 0.0025  # m^2 of a 0.05 m cell
+    assert is_speck(1, 0.013, 1000, a) and is_speck(4, 0.0999, 1000, a)
+    assert is_speck(1, 0.0, 1000, a)
+    assert not is_speck(1, 0.1, 1000, a) and not is_speck(2, 0.3, 1000, a)  # several at one spot
+    assert not is_speck(5, 0.0, 1000, a)  # 0.5 % of the free cells: no speck
+    assert not is_speck(1, None, 1000, a)  # a result that does not know its counts
     result = _rooms_and_specks(specks=3)
     result = dataclasses.replace(result, preparation=DataPreparation(word_scaling=10.0))
     result.concept_totals[2:, 2] = [0.13, 0.999, 1.0]  # model counts: 0.013, 0.0999, 0.1 heard
@@ -186,3 +189,30 @@ def test_a_concept_that_heard_under_a_tenth_of_an_utterance_is_a_speck(capsys):
     out = capsys.readouterr().out
     assert "  + 2 specks of 1 cell where under 0.1 words were heard (concepts 2, 3; " in out
     assert "  concept   4:      1 cell   0.1 words" in out, out  # listed as a concept
+
+
+def test_a_concept_of_half_a_square_metre_or_more_is_no_speck():
+    """The share alone is relative to the map: on a house of 1.94 million cells at 0.05 m, 0.5 %
+    is 9,722 cells (24 m^2), and whole rooms where no word was said were called specks (and
+    joined by ``vi``). A speck also covers under SPECK_AREA (0.5 m^2): at the bound no speck,
+    just under it one. A cell area that is no area is refused."""
+    import dataclasses
+
+    from spcopyro.results.concept_words import SPECK_AREA, speck_sized
+    from spcopyro.results.specks import speck_concepts
+
+    assert SPECK_AREA == 0.5
+    big = 1_944_514  # free cells at 0.05 m
+    assert is_speck(199, 0.0, big, 0.0025)  # 0.4975 m^2
+    assert not is_speck(200, 0.0, big, 0.0025)  # 0.5 m^2: under the share, not the area
+    assert not is_speck(9_000, 0.0, big, 0.0025)  # a 22.5 m^2 room (0.46 % of the cells)
+    assert speck_sized(199, big, 0.0025) and not speck_sized(200, big, 0.0025)
+    assert not speck_sized(10, 1000, 0.0025)  # 1 %: the share still binds
+    for bad in (0.0, -1.0, float("nan"), float("inf"), True):
+        with pytest.raises(ValueError, match="cell_area"):
+            is_speck(1, 0.0, 1000, bad)
+    # a result on 0.75 m cells (0.5625 m^2): its one-cell concepts are no specks
+    result = _rooms_and_specks()
+    assert speck_concepts(result) == [2, 3]
+    coarse = OccupancyGrid(result.grid.occupancy, 0.75, result.grid.origin)
+    assert speck_concepts(dataclasses.replace(result, grid=coarse)) == []

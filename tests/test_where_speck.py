@@ -40,7 +40,9 @@ def test_a_small_concept_where_words_were_heard_is_no_speck():
     where no longer calls it "a speck, not a place" (nor strewn specks). The odds and the Bayes
     factor still warn: the answer is no clearer for it."""
     result = _heard(3.0)
-    assert result.heard(2) == 3.0 and not is_speck(1, result.heard(2), result.grid.num_free)
+    assert result.heard(2) == 3.0 and not is_speck(
+        1, result.heard(2), result.grid.num_free, result.grid.resolution**2
+    )
     warnings = result.where("kitchen", prior="pi").warnings
     assert not any(SPECK in w or "strewn" in w for w in warnings), warnings
     assert len(warnings) == 2 and "odds 1.17" in warnings[0] and "factor of 2.00" in warnings[1]
@@ -80,8 +82,10 @@ def test_a_caller_without_counts_is_told_what_is_true_of_it():
     )
     assert "result" not in speck
     # the words heard, given: no speck where 0.1 were heard, a speck saying so under that
-    assert answer_warnings(posterior, prior, sizes, heard=SPECK_WORDS) == ()
-    (counted,) = answer_warnings(posterior, prior, sizes, prior_name="area", heard=0.0)
+    assert answer_warnings(posterior, prior, sizes, heard=SPECK_WORDS, cell_area=0.0025) == ()
+    (counted,) = answer_warnings(
+        posterior, prior, sizes, prior_name="area", heard=0.0, cell_area=0.0025
+    )
     assert counted.endswith(f"under 0.5%) where no word was heard: {SPECK}")
 
 
@@ -92,7 +96,9 @@ def test_a_small_region_in_pieces_is_judged_as_small_not_as_strewn():
     region[0, 0] = region[0, 2] = region[5, 5] = region[9, 9] = True  # 4 pieces of 1 cell
     posterior, prior, sizes = np.array([0.9, 0.1]), np.array([0.5, 0.5]), np.array([4, 996])
     for heard in (None, 0.0, 3.0):
-        warnings = answer_warnings(posterior, prior, sizes, region=region, heard=heard)
+        warnings = answer_warnings(
+            posterior, prior, sizes, region=region, heard=heard, cell_area=0.0025
+        )
         assert not any("strewn" in w for w in warnings), (heard, warnings)
         assert any(SPECK in w for w in warnings) == (heard != 3.0), (heard, warnings)
 
@@ -129,3 +135,23 @@ def test_where_on_a_saved_fit_with_words_heard_imports_no_torch(tmp_path):
     out = _heard(3.0).save(tmp_path / "fit")
     imported, printed = heavy_imports(["where", str(out), "kitchen", "--prior", "pi"])
     assert imported == [] and "'kitchen' is concept 2" in printed
+
+
+def test_a_region_of_half_a_square_metre_or_more_is_no_speck():
+    """On a big map a room where no word was said holds under 0.5 % of the free cells; the
+    speck's area bound (SPECK_AREA, 0.5 m^2) keeps where from calling it "a speck, not a
+    place", whether or not the words heard in it are known. 4 cells of 1000: specks at
+    0.1249 m^2 a cell (0.4996 m^2), none at 0.125 (0.5 m^2), nor "strewn" (under the share)."""
+    from spcopyro.results.concept_words import SPECK_AREA
+
+    assert SPECK_AREA == 0.5
+    region = np.zeros((20, 50), dtype=bool)
+    region[0, 0] = region[0, 2] = region[5, 5] = region[9, 9] = True  # 4 pieces of 1 cell
+    posterior, prior, sizes = np.array([0.9, 0.1]), np.array([0.5, 0.5]), np.array([4, 996])
+    for heard in (None, 0.0):
+        small = answer_warnings(
+            posterior, prior, sizes, region=region, heard=heard, cell_area=0.1249
+        )
+        assert any(SPECK in w for w in small), (heard, small)
+        room = answer_warnings(posterior, prior, sizes, region=region, heard=heard, cell_area=0.125)
+        assert room == (), (heard, room)

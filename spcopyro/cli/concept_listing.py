@@ -21,6 +21,7 @@ from spcopyro.results.concept_words import (
 from spcopyro.results.specks import support_text
 
 if TYPE_CHECKING:
+    from spcopyro.maps.grid import OccupancyGrid
     from spcopyro.results.result import SpCoResult
 
 __all__ = ["next_step", "print_concepts"]
@@ -32,7 +33,8 @@ def print_concepts(
     """The ``limit`` largest concepts, one line each: cells, words heard there, the top words
     (posterior means) and the distinctive ones with their lifts
     (:mod:`spcopyro.results.concept_words`), or that no word was heard there. Specks (concepts
-    under :data:`~spcopyro.results.concept_words.SPECK_SHARE` of the free cells where fewer
+    under :data:`~spcopyro.results.concept_words.SPECK_SHARE` of the free cells and
+    :data:`~spcopyro.results.concept_words.SPECK_AREA` square metres where fewer
     than :data:`~spcopyro.results.concept_words.SPECK_WORDS` words were heard,
     :func:`~spcopyro.results.concept_words.is_speck`: a doorway or corner cell the Potts field
     holds weakly, docs/real_houses.md) share one line at the end, with how
@@ -54,8 +56,8 @@ def print_concepts(
         print("  (N words: the utterances heard in the concept's cells; the observation "
               "footprint spreads each over the cells around it, so N may be "
               "fractional)")  # fmt: skip
-    specks = [c for c in concepts if _is_speck(c, result.grid.num_free)]
-    listed = [c for c in concepts if not _is_speck(c, result.grid.num_free)]
+    specks = [c for c in concepts if _is_speck(c, result.grid)]
+    listed = [c for c in concepts if not _is_speck(c, result.grid)]
     for concept in listed[:limit]:
         heard = concept["words_heard"]
         words = format_concept_words(  # none where the words were not modelled: said above
@@ -102,7 +104,7 @@ def next_step(
     steps = [f"open {out / 'semantic_map.png'}"] if figures else []
     for concept in concepts:  # none lists a word where the fit did not model its words
         words = concept["distinctive_words"] or concept["top_words"]
-        if words and not _is_speck(concept, result.grid.num_free):
+        if words and not _is_speck(concept, result.grid):
             word = str(words[0][0])
             command = ["spcopyro", "where", str(out), word, "--out", f"{out}_{word}.png"]
             steps.append(f"ask where the {word} is (or any word heard, concepts.json): "
@@ -111,8 +113,11 @@ def next_step(
     return f"next: {'; '.join(steps)}" if steps else None
 
 
-def _is_speck(concept: dict[str, object], num_free: int) -> bool:
-    return is_speck(int(concept["cells"]), concept["words_heard"], num_free)
+def _is_speck(concept: dict[str, object], grid: OccupancyGrid) -> bool:
+    """:func:`~spcopyro.results.concept_words.is_speck` of a ``concepts.json`` entry on the
+    result's ``grid`` (the labels' cells: its free cells and resolution)."""
+    cells, heard = int(concept["cells"]), concept["words_heard"]
+    return is_speck(cells, heard, grid.num_free, grid.resolution**2)
 
 
 def _noun(one: bool, noun: str) -> str:

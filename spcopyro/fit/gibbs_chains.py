@@ -89,6 +89,7 @@ def gibbs_outputs(
     marginal_samples: int = 0,
     point_estimate: str = "map-visited",
     workers: int = 1,
+    cell_area: float | None = None,
 ) -> list[InferenceOutput]:
     """One output per seed: Gibbs chains (:func:`~spcopyro.gibbs.run.start_chain`,
     :func:`~spcopyro.gibbs.run.advance`: the same draws as
@@ -96,7 +97,8 @@ def gibbs_outputs(
     continued from ``resume``; up to ``workers`` of them advance at once
     (:func:`~spcopyro.gibbs.chains.advance_chains`). ``init``: the start's name as recorded;
     ``start_labels(seed, generator)``: chain ``seed``'s initial labels, drawn with its
-    generator."""
+    generator; ``cell_area``: the square metres of one of ``data``'s cells, which the point
+    estimates ``vi`` and ``binder`` need (:func:`with_sample_marginals`)."""
     options = method_options(options, GibbsOptions, "Gibbs sampling")
     if options.anneal_sweeps > sweeps:
         raise ValueError(
@@ -138,7 +140,15 @@ def gibbs_outputs(
         entry = gibbs_record(options, sweeps, chain.backend.name)
         output = output_from_run(chain.to_run(), {**entry, "seed": seed, "init": init})
         outputs.append(
-            with_sample_marginals(output, sweeps, data, settings, point_estimate, progress=progress)
+            with_sample_marginals(
+                output,
+                sweeps,
+                data,
+                settings,
+                point_estimate,
+                progress=progress,
+                cell_area=cell_area,
+            )  # fmt: skip
         )
     return outputs
 
@@ -179,12 +189,14 @@ def with_sample_marginals(
     settings: SpCoSettings,
     point_estimate: str = "map-visited",
     progress: bool | None = False,
+    cell_area: float | None = None,
 ) -> InferenceOutput:
     """``output`` with the label frequencies of its samples from the second half of the sweeps
     as its marginals (unchanged if it kept none there), reporting ``point_estimate`` over them
     (:func:`spcopyro.results.point_estimate.with_point_estimate`; ``vi`` and ``binder`` without
     specks, told by the words ``data`` counts at each cell, footprint included: its word
-    counts divided by ``settings.data.word_scaling``, the units of ``result.heard``), and a
+    counts divided by ``settings.data.word_scaling``, the units of ``result.heard``, and the
+    square metres ``cell_area`` of one of its cells: the grid's resolution squared), and a
     sampler's pi and emissions as their posterior means (the model ``settings.model``): given
     the point estimate's labels when it is one, else averaged over those samples
     (:func:`~spcopyro.results.posterior_means.with_posterior_means`)."""
@@ -198,6 +210,7 @@ def with_sample_marginals(
     output = with_point_estimate(
         output, samples, point_estimate, config.num_concepts, progress=progress,
         cell_words=words_per_cell(data, settings.data.word_scaling),  # vi, binder: the specks
+        cell_area=cell_area,
     )  # fmt: skip
     # One set of concept names per result: the kept samples renamed to the reported map's
     # concepts before their frequencies are counted (issue 22 item 1).

@@ -375,6 +375,7 @@ def point_estimate(
     max_clusters: int | None = None,
     progress: bool | None = False,
     cell_words: np.ndarray | None = None,
+    cell_area: float | None = None,
 ) -> PointEstimate:
     """The partition minimising the expected ``loss`` over ``samples`` [S, N] (module doc).
 
@@ -387,6 +388,9 @@ def point_estimate(
             best search's specks are joined to other clusters
             (:func:`~spcopyro.results.speck_join.join_specks`) and the expected loss is that
             of the result; None: specks kept (the search's estimate).
+        cell_area: the square metres of one cell (the resolution squared of the samples'
+            grid), which a speck's area bound needs: required with ``cell_words``
+            (:func:`~spcopyro.results.concept_words.is_speck`).
         progress: a progress bar (and time estimate) over the samples' preparation, expected
             losses and the searches; None: on unless under CI (:mod:`spcopyro._util.progress`).
     """
@@ -395,6 +399,11 @@ def point_estimate(
     samples = _check(samples, loss)
     if cell_words is not None:
         cell_words = check_cell_words(cell_words, samples.shape[1])
+        if cell_area is None:
+            raise ValueError(
+                "cell_words given without cell_area: a speck is also under SPECK_AREA square "
+                "metres; pass cell_area, the square metres of one cell (resolution ** 2)"
+            )
     order_count = max(1, starts)
     searches = min(order_count, len(samples))  # the bar counts _prepare's 2 S steps too
     with tqdm(
@@ -422,7 +431,7 @@ def point_estimate(
         if cell_words is None:
             return PointEstimate(compact(best)[0], float(best_value), float(losses.min()))
         codes, k = compact(best)
-        joined = join_specks(codes, k, prepared, loss, cell_words)
+        joined = join_specks(codes, k, prepared, loss, cell_words, cell_area)
         codes, k = compact(joined.estimate)
         value = _expected(codes, k, prepared, loss) if joined.cells else best_value
     return PointEstimate(codes, float(value), float(losses.min()), joined.cells, joined.specks,
@@ -491,29 +500,33 @@ def with_point_estimate(
     num_concepts: int,
     progress: bool | None = False,
     cell_words: np.ndarray | None = None,
+    cell_area: float | None = None,
 ) -> InferenceOutput:
     """``output`` reporting the point estimate ``name`` over ``samples`` [S, N] as its labels
     (unchanged for ``"map-visited"``), with :func:`agreement_probability` as its ``agreement``.
 
-    ``"vi"`` and ``"binder"`` join the specks of the loss's minimiser to other clusters (a
-    speck by ``cell_words`` [N], the words heard at each cell, which they need:
-    :mod:`~spcopyro.results.speck_join`); ``"vi-specks"`` and ``"binder-specks"`` keep them.
-    The estimate's clusters are named by the concepts of ``output.labels`` they share most cells
-    with (:func:`concept_labels`), so pi and the emission distributions of the reported state
-    describe them; the expected losses (and, joining, the cells joined and the loss before)
-    go into ``options``; the agreement is that of the reported labels, joined cells included.
+    ``"vi"`` and ``"binder"`` join the specks of the loss's minimiser to other clusters (a speck by
+    ``cell_words`` [N], the words heard at each cell, and ``cell_area``, the square metres of one
+    cell, which they need: :mod:`~spcopyro.results.speck_join`); ``"vi-specks"`` and
+    ``"binder-specks"`` keep them. The estimate's clusters are named by the concepts of
+    ``output.labels`` they share most cells with (:func:`concept_labels`), so pi and the emission
+    distributions of the reported state describe them; the expected losses (and, joining, the cells
+    joined and the loss before) go into ``options``; the agreement is that of the reported labels,
+    joined cells included.
     """
     if check_point_estimate(name) == "map-visited":
         return output
     loss, joins = estimate_loss(name)
-    if joins and cell_words is None:
+    if joins and (cell_words is None or cell_area is None):
         raise ValueError(
             f"point estimate {name!r} joins speck clusters, told by the words heard at "
-            f"each cell: pass cell_words [N] (or {loss + KEEPS_SPECKS!r}, which keeps them)"
+            f"each cell and their area: pass cell_words [N] and cell_area (m^2 of one cell; "
+            f"or {loss + KEEPS_SPECKS!r}, which keeps them)"
         )
     with timed("point_estimate"):
         found = point_estimate(samples, loss, max_clusters=num_concepts, progress=progress,
-                               cell_words=cell_words if joins else None)  # fmt: skip
+                               cell_words=cell_words if joins else None,
+                               cell_area=cell_area)  # fmt: skip
         labels = concept_labels(found.labels, np.asarray(output.labels), num_concepts)
     with timed("agreement"):  # 3 s at 2.9 million cells, 25 samples: a bar on large maps
         bar = setup_bar(samples.shape[1], len(samples), "agreement map", "sample", progress)

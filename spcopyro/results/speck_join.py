@@ -5,7 +5,8 @@ all partitions. Under the model every kept sample holds many one-cell droplets o
 form and dissolve in corners and doorways, and the minimiser keeps a cell apart where its
 co-clustering probability with every neighbouring cluster is below about one half: a speck
 (:func:`~spcopyro.results.concept_words.is_speck`, a cluster on fewer than
-:data:`~spcopyro.results.concept_words.SPECK_SHARE` of the cells where fewer than
+:data:`~spcopyro.results.concept_words.SPECK_SHARE` of the cells and under
+:data:`~spcopyro.results.concept_words.SPECK_AREA` square metres where fewer than
 :data:`~spcopyro.results.concept_words.SPECK_WORDS` words were heard) that is no place,
 only droplets whose labels differ from sample to sample reported as a cluster of their own.
 :func:`join_specks` moves every cell of a speck to the cluster that is no speck where the move
@@ -26,10 +27,12 @@ cheapest for its cell when it is made and the other clusters' cells are not move
 greedy approximation of the minimiser among the partitions without specks, not its proof (on
 the README's fit every joined cell went to a concept one of its neighbours holds). A cluster
 where 0.1 words or more were heard is never a speck, however small; one that heard less
-(the footprint's reach share gives nearly every cell of a room a little) is, as the listing
-and the legend call it: the words at each cell are counted as words (the model's counts
+(the footprint's reach share gives nearly every cell of a room a little) is, if small, as the
+listing and the legend call it: the words at each cell are counted as words (the model's counts
 divided by ``word_scaling``, :func:`~spcopyro.results.posterior_means.words_per_cell`), the
-units of ``result.heard``.
+units of ``result.heard``. A cluster of 0.5 m^2 or more is never a speck, whatever share of the
+map it holds: on a big house the share alone called whole rooms where no word was said specks,
+and joined them (:data:`~spcopyro.results.concept_words.SPECK_AREA`).
 """
 
 from __future__ import annotations
@@ -73,15 +76,20 @@ def check_cell_words(cell_words: np.ndarray, cells: int) -> np.ndarray:
     return words
 
 
-def speck_clusters(estimate: np.ndarray, k: int, cell_words: np.ndarray) -> np.ndarray:
+def speck_clusters(
+    estimate: np.ndarray, k: int, cell_words: np.ndarray, cell_area: float
+) -> np.ndarray:
     """[k] bool: whether each cluster of ``estimate`` [N] (codes 0..k-1) is a speck, by
-    :func:`~spcopyro.results.concept_words.is_speck` of its cells and of the words heard
-    on them (``cell_words`` [N], in words: the model's counts divided by ``word_scaling``;
-    the result's ``heard`` sums the same counts in the same units)."""
+    :func:`~spcopyro.results.concept_words.is_speck` of its cells, their area (``cell_area``
+    square metres each: the resolution squared of the grid the estimate is on) and the words
+    heard on them (``cell_words`` [N], in words: the model's counts divided by
+    ``word_scaling``; the result's ``heard`` sums the same counts in the same units)."""
     sizes = np.bincount(estimate, minlength=k)  # [k]
     heard = np.bincount(estimate, weights=cell_words, minlength=k)  # [k]
     n = estimate.shape[0]
-    return np.array([is_speck(int(sizes[c]), float(heard[c]), n) for c in range(k)], dtype=bool)
+    return np.array(
+        [is_speck(int(sizes[c]), float(heard[c]), n, cell_area) for c in range(k)], dtype=bool
+    )
 
 
 def _changes(
@@ -107,13 +115,19 @@ def _changes(
 
 
 def join_specks(
-    estimate: np.ndarray, k: int, prepared: _Samples, loss: str, cell_words: np.ndarray
+    estimate: np.ndarray,
+    k: int,
+    prepared: _Samples,
+    loss: str,
+    cell_words: np.ndarray,
+    cell_area: float,
 ) -> Joined:
     """``estimate`` [N] (codes 0..k-1) with every speck's cells moved to clusters that are no
     specks (module doc); unchanged where it has no speck, or nothing but specks.
     ``prepared``: the samples of :func:`~spcopyro.results.point_estimate.point_estimate`,
-    ``cell_words`` [N] the words heard at each cell (:func:`check_cell_words`)."""
-    speck = speck_clusters(estimate, k, cell_words)  # [k]
+    ``cell_words`` [N] the words heard at each cell (:func:`check_cell_words`), ``cell_area``
+    the square metres of one cell (:func:`speck_clusters`)."""
+    speck = speck_clusters(estimate, k, cell_words, cell_area)  # [k]
     targets = np.flatnonzero(~speck)  # [T]
     cells = np.flatnonzero(speck[estimate])  # [M]
     estimate = estimate.copy()

@@ -1,7 +1,8 @@
 r"""Speck concepts and how much of the posterior holds them.
 
 A speck (:func:`~spcopyro.results.concept_words.is_speck`) is a concept in use on fewer than
-:data:`~spcopyro.results.concept_words.SPECK_SHARE` of the free cells where fewer than
+:data:`~spcopyro.results.concept_words.SPECK_SHARE` of the free cells and under
+:data:`~spcopyro.results.concept_words.SPECK_AREA` square metres where fewer than
 :data:`~spcopyro.results.concept_words.SPECK_WORDS` words were heard (no word at all until
 the footprint's reach share gave nearly every cell of a room a little). It is counted among
 the concepts in use, but it is no place. Since 2026-12-06 the point estimates ``vi`` and
@@ -65,9 +66,9 @@ def speck_concepts(result: ResultView) -> list[int]:
     """The specks among the concepts in use, largest first (as
     :meth:`~spcopyro.results.result.SpCoResult.concepts_in_use` orders them)."""
     sizes = result.concept_sizes()  # [L]
-    num_free = result.grid.num_free
+    num_free, cell_area = result.grid.num_free, result.grid.resolution**2  # the labels' grid
     return [int(c) for c in result.concepts_in_use()
-            if is_speck(int(sizes[c]), result.heard(int(c)), num_free)]  # fmt: skip
+            if is_speck(int(sizes[c]), result.heard(int(c)), num_free, cell_area)]  # fmt: skip
 
 
 def in_use_text(result: ResultView) -> str:

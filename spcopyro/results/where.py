@@ -48,8 +48,8 @@ posterior odds over the runner-up below :data:`ODDS_WARNING`, the word's Bayes f
 best concept (how much hearing it changes that concept's odds from the prior) below
 :data:`EVIDENCE_WARNING`, a region that is a speck by the rule of the concept listing and the
 map's legend (:func:`~spcopyro.results.concept_words.is_speck`: under 0.5 % of the free cells
-and under 0.1 words heard in it; by size alone, and saying so, where the words heard in it are
-not known), or a region strewn over the map in pieces each smaller than
+and 0.5 m^2, and under 0.1 words heard in it; by size alone, and saying so, where the words
+heard in it are not known), or a region strewn over the map in pieces each smaller than
 :data:`SMALL_REGION_FRACTION` of the free cells (see :func:`answer_warnings`). The last one is
 for a disordered map: room1dk5 fitted with the released code's values (``--preset
 original-code``, 1000 sweeps) labels the house with 120 concepts of 120-180 cells each, salt and
@@ -66,7 +66,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from spcopyro._util.messages import plural, setting, shown_count
-from spcopyro.results.concept_words import SPECK_SHARE, SPECK_WORDS, is_speck
+from spcopyro.results.concept_words import SPECK_SHARE, SPECK_WORDS, is_speck, speck_sized
 
 __all__ = [
     "DEFAULT_WHERE_PRIOR",
@@ -133,7 +133,7 @@ strewn over the map in pieces each holding fewer than this is flagged (:func:`an
 and :func:`spcopyro.figures.plotting.plot_semantic_map` writes no label on a region under it (93
 cells, 0.23 m^2, in room1dk5; 18 cells in the synthetic house, whose smallest room holds 13%).
 Whether the answer's region is a speck is :func:`~spcopyro.results.concept_words.is_speck`'s to
-say (under this share of the free cells, and under 0.1 words heard there)."""
+say (under this share of the free cells and under 0.5 m^2, and under 0.1 words heard there)."""
 
 
 SHARED_ANSWER_P = 0.5
@@ -302,7 +302,8 @@ def answer_warnings(
         sizes: [L] cells of each concept.
         word: the word (for the messages).
         prior_name: ``"area"`` or ``"pi"`` (for the messages).
-        cell_area: square metres of one cell.
+        cell_area: square metres of one cell (the area in the messages, and a speck's bound
+            :data:`~spcopyro.results.concept_words.SPECK_AREA`).
         region: [H, W] bool, the best concept's cells (None: its pieces are not checked).
         connectivity: 4 or 8, the neighbourhood that joins the region's cells into pieces
             (the model's, :attr:`~spcopyro.config.SpCoConfig.connectivity`).
@@ -321,20 +322,22 @@ def answer_warnings(
         \frac{p(c \mid S)}{p(c' \mid S)} < \text{ODDS\_WARNING}, \qquad
         K = \frac{p(c \mid S) / (1 - p(c \mid S))}{p(c) / (1 - p(c))}
           < \text{EVIDENCE\_WARNING}, \qquad
-        n_c < \text{SPECK\_SHARE} \cdot N \;\text{and}\; h_c < \text{SPECK\_WORDS},
+        n_c < \text{SPECK\_SHARE} \cdot N \;\text{and}\; n_c a < \text{SPECK\_AREA}
+        \;\text{and}\; h_c < \text{SPECK\_WORDS},
 
-    the last the rule of :func:`~spcopyro.results.concept_words.is_speck` (h_c the words heard
-    in c's cells), by which the concept listing, the map's legend and ``concepts.json`` call a
-    concept a speck, so that ``where`` calls the same concepts specks they do. Where h_c is not
-    known (``heard`` None) the size alone decides, and the warning says so. A region as small
-    where words were heard gets no warning: it is a small place (a toilet or a closet holds
-    under 0.5 % of a large map), the answer line already gives its cells and m^2, and "a speck,
-    not a place" told the user asking "where is the toilet?" that the toilet the word was heard
-    in was none (a warning is for an answer to treat with care, and the odds and Bayes factor
-    warnings still flag it where the word does not single it out). It also warns when the
-    region (not small itself) lies in several pieces, each under SMALL_REGION_FRACTION * N cells
-    (specks strewn over the map, not a place), and when one concept labels the whole map (every
-    word points there); first of all, when the fit did not model its words.
+    the last the rule of :func:`~spcopyro.results.concept_words.is_speck` (h_c the words heard in
+    c's cells, a the square metres of one cell, ``cell_area``), by which the concept listing, the
+    map's legend and ``concepts.json`` call a concept a speck, so that ``where`` calls the same
+    concepts specks they do. Where h_c is not known (``heard`` None) the size alone decides (share
+    and area, :func:`~spcopyro.results.concept_words.speck_sized`), and the warning says so. A
+    region as small where words were heard gets no warning: it is a small place (a toilet or a
+    closet holds under 0.5 % of a large map), the answer line already gives its cells and m^2, and
+    "a speck, not a place" told the user asking "where is the toilet?" that the toilet the word was
+    heard in was none (a warning is for an answer to treat with care, and the odds and Bayes factor
+    warnings still flag it where the word does not single it out). It also warns when the region
+    (not small itself) lies in several pieces, each under SMALL_REGION_FRACTION * N cells (specks
+    strewn over the map, not a place), and when one concept labels the whole map (every word points
+    there); first of all, when the fit did not model its words.
     """
     posterior = np.asarray(posterior, dtype=np.float64)  # [L]
     order = np.argsort(-posterior, kind="stable")
@@ -365,8 +368,11 @@ def answer_warnings(
             f"follows mostly from the prior ({basis})"
         )
     cells = int(sizes[concept])
-    small = cells < SPECK_SHARE * num_free  # as small as a speck
-    speck = small if heard is None else is_speck(cells, heard, num_free)
+    small = cells < SPECK_SHARE * num_free  # a speck or a small place: never "strewn"
+    if heard is None:  # judged by its size alone: share and area
+        speck = speck_sized(cells, num_free, cell_area)
+    else:
+        speck = is_speck(cells, heard, num_free, cell_area)
     if speck:
         area = setting("prior='area'", "--prior area", "where")  # a library caller's and where's
         hint = (
