@@ -129,7 +129,7 @@ def run_chain(
         tick = time.perf_counter()
         found = point_estimate(samples_array, loss, max_clusters=config.num_concepts,
                                cell_words=cell_words,
-                               cell_area=house.grid.resolution**2)  # fmt: skip
+                               cell_area=house.grid.cell_area)  # fmt: skip
         maps[loss] = found.labels
         maps[f"{loss}_seconds"] = time.perf_counter() - tick
         joined[loss] = {"cells": found.speck_cells, "specks": found.specks}

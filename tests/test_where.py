@@ -77,26 +77,30 @@ def test_no_text_for_users_still_calls_the_close_odds_answer_a_guess():
 def test_each_warning_fires_on_its_own_at_its_bound():
     # odds only: 0.6 / 0.3 = 2 < 3; Bayes factor (0.6/0.4) / (0.2/0.8) = 6; 400 of 1000 cells
     only_odds = answer_warnings(np.array([0.6, 0.3, 0.1]), np.array([0.2, 0.4, 0.4]),
-                                np.array([400, 400, 200]))  # fmt: skip
+                                np.array([400, 400, 200]), cell_area=0.0025)  # fmt: skip
     assert len(only_odds) == 1 and "odds 2.00" in only_odds[0]
     # evidence only: odds 4, Bayes factor (0.8/0.2) / (0.7/0.3) = 1.71: the prior decides
     only_evidence = answer_warnings(np.array([0.8, 0.2]), np.array([0.7, 0.3]),
-                                    np.array([700, 300]), prior_name="area")  # fmt: skip
+                                    np.array([700, 300]), prior_name="area",
+                                    cell_area=0.0025)  # fmt: skip
     assert len(only_evidence) == 1 and "factor of 1.71" in only_evidence[0]
     assert "share of the map" in only_evidence[0]
     # a speck only: odds 9, Bayes factor 9, 4 cells of 1000 (under 0.5%)
     speck = answer_warnings(np.array([0.9, 0.1]), np.array([0.5, 0.5]), np.array([4, 996]),
                             cell_area=0.0025)  # fmt: skip
     assert len(speck) == 1 and "4 cells (0.01 m^2, 0.40% of the free cells" in speck[0]
-    # exactly at the bounds nothing fires
+    # exactly at the bounds nothing fires: 5 cells of 1000 at 0.0025 m^2 (0.0125 m^2, far
+    # under SPECK_AREA), so the share bound alone keeps the region from being a speck
     n = int(np.ceil(SMALL_REGION_FRACTION * 1000))
     p = ODDS_WARNING / (1 + ODDS_WARNING)  # odds exactly 3
     prior = p / (p + EVIDENCE_WARNING * (1 - p))  # Bayes factor exactly 3
     at_bounds = answer_warnings(np.array([p, 1 - p]), np.array([prior, 1 - prior]),
-                                np.array([n, 1000 - n]))  # fmt: skip
+                                np.array([n, 1000 - n]), cell_area=0.0025)  # fmt: skip
     assert at_bounds == ()
     # one concept for the whole map: every word points there
-    (single,) = answer_warnings(np.array([1.0, 0.0]), np.array([1.0, 0.0]), np.array([50, 0]))
+    (single,) = answer_warnings(
+        np.array([1.0, 0.0]), np.array([1.0, 0.0]), np.array([50, 0]), cell_area=0.0025
+    )
     assert "one concept labels the whole map" in single
 
 
@@ -325,12 +329,12 @@ def test_a_region_strewn_over_the_map_in_specks_is_flagged(tmp_path, capsys):
     block = np.zeros((20, 20), dtype=bool)
     block[:5, :5] = True
     assert answer_warnings(np.array([0.9, 0.1]), np.array([25 / 400, 375 / 400]),
-                           np.array([25, 375]), region=block) == ()  # fmt: skip
+                           np.array([25, 375]), region=block, cell_area=0.01) == ()  # fmt: skip
     # two rooms of one concept are pieces big enough to be places: no warning either
     two = np.zeros((20, 20), dtype=bool)
     two[:3, :4] = two[10:13, 10:14] = True
     assert answer_warnings(np.array([0.9, 0.1]), np.array([24 / 400, 376 / 400]),
-                           np.array([24, 376]), region=two) == ()  # fmt: skip
+                           np.array([24, 376]), region=two, cell_area=0.01) == ()  # fmt: skip
     # the pieces are joined through the model's neighbourhood
     from spcopyro.results.where import region_piece_sizes, region_pieces
 

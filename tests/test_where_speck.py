@@ -155,3 +155,14 @@ def test_a_region_of_half_a_square_metre_or_more_is_no_speck():
         assert any(SPECK in w for w in small), (heard, small)
         room = answer_warnings(posterior, prior, sizes, region=region, heard=heard, cell_area=0.125)
         assert room == (), (heard, room)
+
+
+def test_answer_warnings_takes_no_default_cell_area():
+    """answer_warnings took ``cell_area=1.0`` by default, which since the speck's area bound
+    (0.5 m^2) decides the speck warning: a caller that left it out was never told of a speck (4
+    cells of 1 m^2 are none). The cell area is now a required keyword, as point_estimate's is."""
+    posterior, prior, sizes = np.array([0.9, 0.1]), np.array([0.5, 0.5]), np.array([4, 996])
+    with pytest.raises(TypeError, match="cell_area"):
+        answer_warnings(posterior, prior, sizes, heard=0.0)
+    (speck,) = answer_warnings(posterior, prior, sizes, heard=0.0, cell_area=0.0025)
+    assert SPECK in speck

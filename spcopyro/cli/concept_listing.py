@@ -13,15 +13,13 @@ from spcopyro.results.concept_words import (
     cells_range,
     format_concept_words,
     format_words_heard,
-    is_speck,
     shown_top_words,
     speck_line,
     words_modelled,
 )
-from spcopyro.results.specks import support_text
+from spcopyro.results.specks import speck_concepts, support_text
 
 if TYPE_CHECKING:
-    from spcopyro.maps.grid import OccupancyGrid
     from spcopyro.results.result import SpCoResult
 
 __all__ = ["next_step", "print_concepts"]
@@ -56,8 +54,9 @@ def print_concepts(
         print("  (N words: the utterances heard in the concept's cells; the observation "
               "footprint spreads each over the cells around it, so N may be "
               "fractional)")  # fmt: skip
-    specks = [c for c in concepts if _is_speck(c, result.grid)]
-    listed = [c for c in concepts if not _is_speck(c, result.grid)]
+    speck_ids = set(speck_concepts(result))
+    specks = [c for c in concepts if c["concept"] in speck_ids]
+    listed = [c for c in concepts if c["concept"] not in speck_ids]
     for concept in listed[:limit]:
         heard = concept["words_heard"]
         words = format_concept_words(  # none where the words were not modelled: said above
@@ -102,22 +101,16 @@ def next_step(
     :func:`print_concepts` listed them). None: no figure, and no concept heard a word (or the
     fit did not model its words: ``where`` would answer with the prior, whatever the word)."""
     steps = [f"open {out / 'semantic_map.png'}"] if figures else []
+    speck_ids = set(speck_concepts(result))
     for concept in concepts:  # none lists a word where the fit did not model its words
         words = concept["distinctive_words"] or concept["top_words"]
-        if words and not _is_speck(concept, result.grid):
+        if words and concept["concept"] not in speck_ids:
             word = str(words[0][0])
             command = ["spcopyro", "where", str(out), word, "--out", f"{out}_{word}.png"]
             steps.append(f"ask where the {word} is (or any word heard, concepts.json): "
                          f"{shlex.join(command)}")  # fmt: skip
             break
     return f"next: {'; '.join(steps)}" if steps else None
-
-
-def _is_speck(concept: dict[str, object], grid: OccupancyGrid) -> bool:
-    """:func:`~spcopyro.results.concept_words.is_speck` of a ``concepts.json`` entry on the
-    result's ``grid`` (the labels' cells: its free cells and resolution)."""
-    cells, heard = int(concept["cells"]), concept["words_heard"]
-    return is_speck(cells, heard, grid.num_free, grid.resolution**2)
 
 
 def _noun(one: bool, noun: str) -> str:

@@ -377,7 +377,7 @@ def fit_house_chains(
                 lambda seed, generator: initial_labels(house, counts, settings, init, seed,
                                                        generator),
                 progress, checkpoint, resume, marginal_samples, point_estimate, workers,
-                cell_area=house.grid.resolution**2,  # the model's grid: the specks' area
+                cell_area=house.grid.cell_area,  # the model's grid: the specks' area
             )  # fmt: skip
             with timed("result"):
                 return [
@@ -414,7 +414,7 @@ def fit_house_chains(
                 if output.marginals is None:  # a sampler (vi-gibbs): its label frequencies
                     output = gibbs_chains.with_sample_marginals(
                         output, int(sweeps), data, settings, point_estimate,
-                        progress=progress, cell_area=house.grid.resolution**2,
+                        progress=progress, cell_area=house.grid.cell_area,
                     )  # fmt: skip
                 fits.append(result_of(output, house, counts, data, settings, method, record))
             except KeyboardInterrupt:  # the run is whole, its q not kept: "no iteration" was false

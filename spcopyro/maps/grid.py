@@ -251,6 +251,12 @@ class OccupancyGrid:
     def shape(self) -> tuple[int, int]:
         return (self.height, self.width)
 
+    @property
+    def cell_area(self) -> float:
+        """Square metres of one cell: ``resolution ** 2`` (a speck's area bound,
+        :func:`~spcopyro.results.concept_words.is_speck`)."""
+        return self.resolution**2
+
     @cached_property
     def free(self) -> np.ndarray:
         """``[H, W]`` bool, True on FREE cells (read-only)."""

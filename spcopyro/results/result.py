@@ -393,7 +393,7 @@ class SpCoResult:
         region = self.label_image() == concept  # [H, W]
         warnings = answer_warnings(
             posterior, weights, sizes, word=key, prior_name=prior,
-            cell_area=self.grid.resolution**2, region=region,
+            cell_area=self.grid.cell_area, region=region,
             connectivity=self.config.connectivity, words_modelled=words_modelled(self),
             heard=self.heard(concept),  # None: unknown, a speck judged by its size alone
         )  # fmt: skip

@@ -66,7 +66,7 @@ def speck_concepts(result: ResultView) -> list[int]:
     """The specks among the concepts in use, largest first (as
     :meth:`~spcopyro.results.result.SpCoResult.concepts_in_use` orders them)."""
     sizes = result.concept_sizes()  # [L]
-    num_free, cell_area = result.grid.num_free, result.grid.resolution**2  # the labels' grid
+    num_free, cell_area = result.grid.num_free, result.grid.cell_area  # the labels' grid
     return [int(c) for c in result.concepts_in_use()
             if is_speck(int(sizes[c]), result.heard(int(c)), num_free, cell_area)]  # fmt: skip
 

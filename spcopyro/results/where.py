@@ -288,7 +288,7 @@ def answer_warnings(
     *,
     word: str = "",
     prior_name: str = DEFAULT_WHERE_PRIOR,
-    cell_area: float = 1.0,
+    cell_area: float,
     region: np.ndarray | None = None,
     connectivity: int = 4,
     words_modelled: bool = True,
@@ -302,8 +302,9 @@ def answer_warnings(
         sizes: [L] cells of each concept.
         word: the word (for the messages).
         prior_name: ``"area"`` or ``"pi"`` (for the messages).
-        cell_area: square metres of one cell (the area in the messages, and a speck's bound
-            :data:`~spcopyro.results.concept_words.SPECK_AREA`).
+        cell_area: square metres of one cell, the labels' grid resolution squared (the area in
+            the messages, and a speck's bound :data:`~spcopyro.results.concept_words.SPECK_AREA`);
+            required: a default would decide which regions are specks.
         region: [H, W] bool, the best concept's cells (None: its pieces are not checked).
         connectivity: 4 or 8, the neighbourhood that joins the region's cells into pieces
             (the model's, :attr:`~spcopyro.config.SpCoConfig.connectivity`).

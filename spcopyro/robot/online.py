@@ -458,7 +458,7 @@ def fit_update(
                 )
                 raise FitInterrupted(where_stopped) from None
             if output.marginals is None:  # a sampler: its label frequencies; a variational
-                area = house.grid.resolution**2  # m^2 of a cell: the saved fit's (checked)
+                area = house.grid.cell_area  # m^2 of a cell: the saved fit's (checked)
                 output = gibbs_chains.with_sample_marginals(  # method's marginals: its q(C)
                     output, int(sweeps), start.data, start.settings, point_estimate,
                     cell_area=area,
