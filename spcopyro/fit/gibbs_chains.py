@@ -206,7 +206,7 @@ def with_sample_marginals(
     late = np.asarray(output.sample_iterations) >= sweeps // 2
     if not late.any():
         return output
-    samples = np.asarray(output.label_samples)[late]  # [S', N]
+    samples = second_half(np.asarray(output.label_samples), late)  # [S', N]
     output = with_point_estimate(
         output, samples, point_estimate, config.num_concepts, progress=progress,
         cell_words=words_per_cell(data, settings.data.word_scaling),  # vi, binder: the specks
@@ -234,6 +234,15 @@ def with_sample_marginals(
         label_samples=None,
         options={**output.options, "marginal_samples": len(samples)},
     )
+
+
+def second_half(samples: np.ndarray, late: np.ndarray) -> np.ndarray:
+    """``samples[late]`` ([S', N] of [S, N], ``late`` [S] bool), as a view where ``late`` is a
+    run of samples to the end (a chain's, kept in sweep order), so that the kept maps are not
+    copied again (0.39 GB for 50 maps of 3.87 million cells); a copy otherwise. Read-only
+    where ``samples`` is: the chain's maps (:meth:`~spcopyro.gibbs.run.GibbsChain.to_run`)."""
+    first = int(np.argmax(late))
+    return samples[first:] if late[first:].all() else samples[late]
 
 
 def _where_stopped(chains: Sequence[GibbsChain | None], sweeps: int) -> str:
