@@ -60,6 +60,7 @@ def write_outputs(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) 
     staging folder moved to OUT (``_fit_staged`` of :mod:`spcopyro.cli.fit`)."""
     from spcopyro._util.outputs import checkpoint_path
     from spcopyro.fit.house import log_degenerate_map
+    from spcopyro.fit.setting_warnings import log_concept_slots
     from spcopyro.gibbs.hyperparameters import describe_hyperparameters
     from spcopyro.results.concept_words import near_uniform
     from spcopyro.results.uncertainty import cell_entropy, free_cells_image
@@ -190,6 +191,7 @@ def write_outputs(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) 
     concepts = result.concepts()  # listed, then the next step's word
     print_concepts(result, concepts=concepts)
     log_degenerate_map(result, house, False if job.settings.preset == DEFAULT_PRESET else None)
+    log_concept_slots(result)  # a weak-limit DP short of its L concepts
     vocabulary_size = len(result.vocabulary)
     used = result.concepts_in_use()
     if vocabulary_size == 1:  # "close to uniform" always, and for no reason below

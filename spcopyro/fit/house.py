@@ -60,6 +60,7 @@ from spcopyro.fit.setting_warnings import CONCENTRATION_RANGE as CONCENTRATION_R
 from spcopyro.fit.setting_warnings import FREEZING_GAMMA as FREEZING_GAMMA
 from spcopyro.fit.setting_warnings import config_warnings as config_warnings
 from spcopyro.fit.setting_warnings import gamma_warning as gamma_warning
+from spcopyro.fit.setting_warnings import log_concept_slots
 from spcopyro.fit.setting_warnings import preparation_warnings as preparation_warnings
 from spcopyro.fit.starts import Init, init_name, initial_labels
 from spcopyro.fit.variational_checkpoint import VariationalSaving
@@ -445,7 +446,8 @@ def fit_house(
 ) -> SpCoResult:
     """Fit SpCoMapping to a house. A degenerate reported map (one concept over most of the
     map while words said at different places lie inside it, or outside it in small concepts) is
-    logged as a warning (:func:`log_degenerate_map`).
+    logged as a warning (:func:`log_degenerate_map`), as is a weak-limit DP's map using nearly
+    all of its L concepts (:func:`~spcopyro.fit.setting_warnings.log_concept_slots`).
 
     Args:
         settings: model hyperparameters and data preparation (default: :func:`preset`'s); a
@@ -530,6 +532,7 @@ def fit_house(
         )  # fmt: skip
     default = bool(skipped) if settings.preset == DEFAULT_PRESET else None  # for its advice
     log_degenerate_map(results[kept], house, default)
+    log_concept_slots(results[kept])  # a weak-limit DP short of its L concepts
     return results[kept]
 
 

@@ -6,12 +6,27 @@ nothing (a footprint's kernel or field of view without a footprint).
 :func:`spcopyro.fit.house.prepare_model_data` logs them (logger ``"spcopyro"``), so every fit,
 ``spcopyro fit`` included, says them; they depend on the settings only, and on whether the fit
 samples (those about the Gibbs sampler are given to gibbs and vi-gibbs only).
+
+One is said after the fit, of the setting L: :func:`log_concept_slots`, a weak-limit DP whose
+map uses nearly all of its L concepts (:func:`spcopyro.results.map_checks.concept_slots_warning`),
+which :func:`~spcopyro.fit.house.fit_house` and ``spcopyro fit`` log with the degenerate-map
+warning.
 """
 
 from __future__ import annotations
 
+import logging
+from typing import TYPE_CHECKING
+
 from spcopyro._util.messages import setting
 from spcopyro.config import CONCENTRATION_FIELDS, DataPreparation, SpCoConfig
+from spcopyro.inference.names import SAMPLERS
+from spcopyro.results.map_checks import concept_slots_warning
+
+if TYPE_CHECKING:
+    from spcopyro.results.result import SpCoResult
+
+logger = logging.getLogger("spcopyro")
 
 FREEZING_GAMMA = 10.0
 """gamma at and above which the sampler freezes: measured from random labels on the synthetic
@@ -122,3 +137,18 @@ def preparation_warnings(data: DataPreparation) -> list[str]:
         f"footprint: footprint_radius is 0, so {where}; "
         f"{it} effect with {setting('footprint_radius=R', '--footprint R')}, R metres > 0"
     ]
+
+
+def log_concept_slots(result: SpCoResult) -> str | None:
+    """Log (logger ``"spcopyro"``) and return the warning of a fit under the weak-limit DP prior
+    whose reported map, or a refined fit's coarse stage (``inference["refine"]["coarse"]``),
+    uses at least :data:`~spcopyro.results.map_checks.SATURATED_SLOTS` of its L concepts
+    (:func:`~spcopyro.results.map_checks.concept_slots_warning`, with :data:`FREEZING_GAMMA`
+    for a sampler), else None."""
+    coarse = (result.inference.get("refine") or {}).get("coarse")
+    stage = None if not coarse else (int(coarse["concepts"]), float(coarse["cell_size"]))
+    freezing = FREEZING_GAMMA if result.method in SAMPLERS else None
+    warning = concept_slots_warning(result.label_image(), result.config, stage, freezing)
+    if warning:
+        logger.warning(warning)
+    return warning

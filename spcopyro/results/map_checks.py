@@ -28,10 +28,19 @@ The rule (numpy only)::
 Every token of an utterance counts as a word (the word preparation drops none: see
 :mod:`spcopyro.data.text`); a word's count is the number of the utterances it is named among
 (c's, or those outside c) that hold it.
+
+A map is *short of concept slots* when a fit under the weak-limit Dirichlet-process prior
+(``prior="dp"``: L, ``num_concepts``, is only an upper bound on the concepts) reports at least
+:data:`SATURATED_SLOTS` of its L concepts in use and its labels form regions
+(:data:`REGION_AGREEMENT`; patches fill every slot whatever L is): the prior can hold no more,
+so places may be merged for want of concepts (a synthetic house of 519k free cells used 113 of
+120, one of 960k all 120). :func:`concept_slots_warning` says so, with the remedy (a larger L);
+not under a finite Dirichlet prior, where L is the known number of concepts.
 """
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from contextvars import ContextVar
@@ -44,6 +53,7 @@ from spcopyro._util.messages import setting, shown_count
 from spcopyro.config import DEFAULT_PRESET
 
 if TYPE_CHECKING:
+    from spcopyro.config import SpCoConfig
     from spcopyro.data import House
 
 __all__ = [
@@ -55,6 +65,9 @@ __all__ = [
     "NAMED_WORDS",
     "PATCHES_HEARD",
     "PATCHES_SHARE",
+    "REGION_AGREEMENT",
+    "SATURATED_SLOTS",
+    "concept_slots_warning",
     "degenerate_map_advice",
     "degenerate_map_warning",
     "house_map_warning",
@@ -317,3 +330,112 @@ def coverage_warning(house: House) -> str | None:
         f"map {grid.source or ''} (x x y): if the robot toured the whole map, its resolution "
         f"({grid.resolution:g} m) or origin may be wrong"
     )
+
+
+SATURATED_SLOTS = 0.9
+"""Share of a weak-limit DP's L concepts at and above which a map's concepts in use say that L,
+the prior's upper bound, may be merging places (:func:`concept_slots_warning`). Measured under
+the default ``coarse`` fit (L = 120): the embedded house and the five public houses report 5-8
+concepts (4-7%; docs/real_houses.md, 5000 sweeps), a synthetic house of 127k free cells 23-28
+(19-23%; its truth holds 26 connected regions of one category); synthetic houses of 519k-3.9M
+free cells (``--sweeps 200``, 2026-12-06; 106 such regions at 519k, 195 at 960k) used 113-120
+on the coarse stage (94-100%: saturated; the largest's refinement reported 93, its point
+estimate joining specks, before the speck area bound). 90% (108 of 120) lies between: four
+times the 127k-cell house's share, below every saturated one. The 960k-cell house used 218
+of L = 240 (``refine="never"``), warned again: its rooms and specks fill 91% of that bound."""
+REGION_AGREEMENT = 0.85
+"""Share of the 4-neighbour pairs of free cells holding the same concept below which a map's
+labels are patches, not regions, and a full set of slots says nothing of L
+(:func:`concept_slots_warning` is silent): patches fill every slot whatever L is. Measured
+(every slot or nearly in use): 0.01-0.22 three sweeps from random labels (``original-code``,
+L = 120, gamma 0.5 and 3, a 1299-cell house), 0.16-0.62 two sweeps at L = 10, 0.08-0.42
+below the Potts critical coupling (gamma 2.1-2.45, 300-1000 sweeps, the embedded house),
+0.74-0.77 with the sampler frozen (``paper-dp`` at gamma 10-12); regions: 0.93-1.00 on the
+embedded house at L = 4 (5-300 sweeps), 0.979-0.991 on the saturated coarse stages above
+(0.25 m cells, ``refine="never"``), 0.994-0.998 on their refinements' 0.05 m cells."""
+
+
+def concept_slots_warning(
+    label_image: np.ndarray,
+    config: SpCoConfig,
+    coarse: tuple[int, float] | None = None,
+    freezing_gamma: float | None = None,
+) -> str | None:
+    """A warning when a fit under the weak-limit DP prior is short of concept slots (the module
+    docstring), else None (always under ``prior="dirichlet"``).
+
+    Args:
+        label_image: ``[H, W]`` int, the reported concept of every free cell, -1 elsewhere
+            (:meth:`~spcopyro.results.result.SpCoResult.label_image`).
+        config: the fit's model settings (``num_concepts`` L, ``prior``, ``gamma``).
+        coarse: a refined fit's coarse stage: (its concepts in use, its cell size in metres);
+            it warns when either map uses at least :data:`SATURATED_SLOTS` of L (a refinement
+            starts from the coarse map, merged places and all, and its point estimate may join
+            specks: 120 of 120 on a coarse stage were reported as 93).
+        freezing_gamma: the Gibbs sampler's freezing point, for a sampled fit
+            (:data:`~spcopyro.fit.setting_warnings.FREEZING_GAMMA`); None: the fit did not
+            sample.
+
+    The rule::
+
+        used  = the concepts in use (of the reported map, or of the coarse stage if more)
+        agree = share of the 4-neighbour pairs of free cells with the same concept
+        warn  if prior == "dp" and used >= ceil(SATURATED_SLOTS * L)
+              and agree >= REGION_AGREEMENT
+
+    Labels in patches (``agree`` below :data:`REGION_AGREEMENT`) fill every slot whatever L is:
+    a chain a few sweeps from its random start, disorder below the Potts critical coupling or
+    a frozen sampler, the last two said by the fit's own warnings
+    (:func:`spcopyro.fit.setting_warnings.config_warnings`). The message names ``used`` of L
+    and the remedy, an upper bound of 2 L (``num_concepts``, ``fit``'s ``--concepts``). Where
+    regions formed while gamma is below the critical coupling ln(1 + sqrt(L)) (4 neighbours,
+    as :func:`~spcopyro.fit.setting_warnings.gamma_warning` tells) or at the freezing point,
+    the message adds that the labels may be those patches and names gamma first, agreeing with
+    that warning.
+    """
+    if config.prior != "dp":  # a finite Dirichlet: L is the known number of concepts
+        return None
+    image = np.asarray(label_image)  # [H, W]
+    num = int(config.num_concepts)
+    bound = math.ceil(round(SATURATED_SLOTS * num, 9))  # 108 of 120 (round: 0.9 * L's bits)
+    used = int(np.unique(image[image >= 0]).size)
+    if max(used, 0 if coarse is None else int(coarse[0])) < bound:
+        return None
+    if _like_neighbours(image) < REGION_AGREEMENT:  # patches: every slot fills, whatever L is
+        return None
+    stage = "" if coarse is None else f" ({coarse[0]} on its coarse stage's {coarse[1]:g} m cells)"
+    more = 2 * num
+    larger = setting(f"num_concepts={more}", f"--concepts {more}")
+    message = (
+        f"the map uses {used} of its L = {num} concept slots{stage}: the weak-limit "
+        f"Dirichlet-process prior holds at most L concepts, so places may be merged for want "
+        f"of slots; refit with a larger upper bound, {larger} (a sweep's time and memory grow "
+        f"with L)"
+    )
+    gamma = setting("gamma", "--gamma")
+    if config.connectivity == 4 and config.gamma < config.critical_gamma:  # gamma_warning's
+        higher = math.log1p(math.sqrt(more))
+        message += (
+            f"; but with gamma = {config.gamma:g} under the critical coupling "
+            f"{config.critical_gamma:.3f} (see its warning) the labels may be disordered "
+            f"patches that fill every slot whatever L is (L = {more} raises that coupling to "
+            f"{higher:.3f}): raise {gamma} first"
+        )
+    elif freezing_gamma is not None and config.gamma >= freezing_gamma:
+        message += (
+            f"; but with gamma = {config.gamma:g} at or above {freezing_gamma:g}, where the Gibbs "
+            f"sampler freezes (see its warning), the labels may be the random start's patches, "
+            f"which fill every slot whatever L is: lower {gamma} first"
+        )
+    return message
+
+
+def _like_neighbours(image: np.ndarray) -> float:
+    """The share of the 4-neighbour pairs of free cells (``image`` ``[H, W]`` >= 0) whose
+    concepts are the same; 1 where there is no pair."""
+    same = pairs = 0
+    for a, b in ((image[1:, :], image[:-1, :]), (image[:, 1:], image[:, :-1])):  # [H-1, W], ...
+        both = (a >= 0) & (b >= 0)
+        pairs += int(np.count_nonzero(both))
+        same += int(np.count_nonzero(both & (a == b)))
+    return same / pairs if pairs else 1.0
