@@ -92,15 +92,50 @@ def test_to_run_allocates_no_second_copy_of_the_maps():
     assert peak < 0.25 * maps, (peak, maps)
 
 
-def test_second_half_is_a_view_of_a_run_to_the_end_and_a_copy_otherwise():
+def test_second_half_is_the_view_from_the_first_late_sample():
+    """``samples[first:]``, the samples at sweeps ``>= sweeps // 2`` (the old boolean mask's),
+    also where ``sweeps // 2`` is itself a kept sweep (it is in) or falls between two."""
     samples = np.arange(24, dtype=np.int16).reshape(6, 4)  # [S, N]
     samples.flags.writeable = False
-    late = np.array([False, False, False, True, True, True])
-    half = second_half(samples, late)
-    np.testing.assert_array_equal(half, samples[late])
-    assert np.shares_memory(half, samples) and not half.flags.writeable
-    scattered = np.array([False, True, False, True, True, True])
-    copy = second_half(samples, scattered)
-    np.testing.assert_array_equal(copy, samples[scattered])
-    assert not np.shares_memory(copy, samples)
-    np.testing.assert_array_equal(second_half(samples, np.ones(6, bool)), samples)
+    iterations = np.array([1, 3, 5, 7, 9, 11])  # thin 2, ascending
+    for sweeps in range(0, 26):
+        half = second_half(samples, iterations, sweeps)
+        np.testing.assert_array_equal(half, samples[iterations >= sweeps // 2])
+        assert half.base is samples or half.base is samples.base  # a view, no copy
+        assert not half.flags.writeable
+    assert second_half(samples, iterations, 14).shape == (3, 4)  # 7 kept: 7, 9, 11
+    assert second_half(samples, iterations, 24).shape == (0, 4)  # none late
+    with pytest.raises(ValueError, match="ascend"):
+        second_half(samples, iterations[::-1], 12)
+
+
+def test_save_writes_the_chains_stack_without_stacking_it_again(tmp_path, monkeypatch):
+    """A checkpoint saved after a fit (Ctrl-C while its outputs are written) reads the stack the
+    chain's rows live in: no second S N copy of the maps while they are all held."""
+    data, chain = _chain()
+    advance(chain, SWEEPS, thin=THIN, progress=False)
+    expected = np.stack(chain.label_samples)
+
+    def no_stack(*args, **kwargs):
+        raise AssertionError("np.stack of rows that are one stack's rows already")
+
+    with monkeypatch.context() as patch:
+        patch.setattr(np, "stack", no_stack)
+        stack = chain.sample_stack()
+        assert _shares_every_row(stack, chain.label_samples) and not stack.flags.writeable
+        save_chain(chain, tmp_path / "c.npz")
+    with np.load(tmp_path / "c.npz") as saved:
+        np.testing.assert_array_equal(saved["chain0.label_samples"], expected)
+        assert saved["chain0.label_samples"].dtype == expected.dtype
+
+
+def test_a_checkpoint_saved_before_and_after_stacking_is_the_same_file(tmp_path):
+    """Rows of two advances: saved as they are, and again once sample_stack has made the chain's
+    rows one stack's rows -- the same bytes (and so the same as the old np.stack's)."""
+    _, chain = _chain()
+    advance(chain, SWEEPS // 2, thin=THIN, progress=False)
+    advance(chain, SWEEPS // 2, thin=THIN, progress=False)
+    save_chain(chain, tmp_path / "before.npz")
+    chain.sample_stack()
+    save_chain(chain, tmp_path / "after.npz")
+    assert (tmp_path / "before.npz").read_bytes() == (tmp_path / "after.npz").read_bytes()

@@ -203,10 +203,11 @@ def with_sample_marginals(
     config = settings.model
     if output.label_samples is None or output.sample_iterations is None:
         return output
-    late = np.asarray(output.sample_iterations) >= sweeps // 2
-    if not late.any():
+    samples = second_half(
+        np.asarray(output.label_samples), np.asarray(output.sample_iterations), sweeps
+    )  # [S', N]
+    if not len(samples):
         return output
-    samples = second_half(np.asarray(output.label_samples), late)  # [S', N]
     output = with_point_estimate(
         output, samples, point_estimate, config.num_concepts, progress=progress,
         cell_words=words_per_cell(data, settings.data.word_scaling),  # vi, binder: the specks
@@ -236,13 +237,18 @@ def with_sample_marginals(
     )
 
 
-def second_half(samples: np.ndarray, late: np.ndarray) -> np.ndarray:
-    """``samples[late]`` ([S', N] of [S, N], ``late`` [S] bool), as a view where ``late`` is a
-    run of samples to the end (a chain's, kept in sweep order), so that the kept maps are not
-    copied again (0.39 GB for 50 maps of 3.87 million cells); a copy otherwise. Read-only
-    where ``samples`` is: the chain's maps (:meth:`~spcopyro.gibbs.run.GibbsChain.to_run`)."""
-    first = int(np.argmax(late))
-    return samples[first:] if late[first:].all() else samples[late]
+def second_half(samples: np.ndarray, iterations: np.ndarray, sweeps: int) -> np.ndarray:
+    """[S', N] the maps of ``samples`` [S, N] kept at ``iterations`` [S] (0-based sweeps,
+    ascending, as :func:`~spcopyro.gibbs.run.advance` keeps them) of ``sweeps // 2`` or later,
+    as a view ``samples[first:]`` (``first`` the first such sample: :func:`numpy.searchsorted`,
+    ``side="left"``), so that the kept maps are not copied again (0.39 GB for 50 maps of 3.87
+    million cells). Read-only where ``samples`` is: the chain's maps
+    (:meth:`~spcopyro.gibbs.run.GibbsChain.sample_stack`). ValueError if ``iterations`` do not
+    ascend."""
+    if np.any(np.diff(iterations) <= 0):
+        raise ValueError(f"second_half: the sample iterations must ascend, got {iterations}")
+    first = int(np.searchsorted(iterations, sweeps // 2, side="left"))
+    return samples[first:]
 
 
 def _where_stopped(chains: Sequence[GibbsChain | None], sweeps: int) -> str:

@@ -145,7 +145,7 @@ def save_chains(
         if chain.best_state is not None:
             arrays.update(_state_arrays(f"chain{k}.best_", chain.best_state))
         if chain.label_samples:
-            arrays[f"chain{k}.label_samples"] = np.stack(chain.label_samples)
+            arrays[f"chain{k}.label_samples"] = chain.sample_stack()  # no copy
             arrays[f"chain{k}.sample_sweeps"] = np.asarray(chain.sample_sweeps, dtype=np.int64)
         if chain.hyper_trace:
             arrays[f"chain{k}.hyperparameters"] = np.asarray(chain.hyper_trace, dtype=np.float64)

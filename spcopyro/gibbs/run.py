@@ -169,7 +169,7 @@ class GibbsChain:
             log_joint=np.asarray(self.log_joint, dtype=np.float64),
             num_concepts=np.asarray(self.num_concepts, dtype=np.int64),
             seconds=np.asarray(self.seconds, dtype=np.float64),
-            label_samples=self._sample_stack(),
+            label_samples=self.sample_stack(),
             sample_sweeps=(
                 np.asarray(self.sample_sweeps, dtype=np.int64) if self.label_samples else None
             ),
@@ -179,10 +179,12 @@ class GibbsChain:
             initial_config=self.config,
         )
 
-    def _sample_stack(self) -> np.ndarray | None:
+    def sample_stack(self) -> np.ndarray | None:
         """[S', N] the kept label maps as one read-only array that the chain's rows are views of
-        (None if it kept none), so that a map is held once, not by the chain and again by its
-        run (at 3.87 million cells, 100 maps: 0.77 GB each).
+        (None if it kept none): a read-only view of the stack whose rows are the chain's rows in
+        order where there is one, else one new stack (made once; the chain then keeps it). So a
+        map is held once, not by the chain and again by its run or a checkpoint being saved (at
+        3.87 million cells, 100 maps: 0.77 GB each).
 
         The rows of one :func:`advance` are already the rows of its driver's stack, which is
         then handed out as it is. Rows of several (``--sweeps auto``'s blocks, a resumed
