@@ -202,7 +202,7 @@ def test_an_experiment_row_gets_the_degenerate_map_check(monkeypatch, caplog):
     """An SpCoMapping row of the experiment fits by fit_spco, which never ran fit_house's
     degenerate-map check (only the study's ari_every cells did, in evaluate._fit): its
     one-concept map went without the warning. fit_spco now checks every map it returns."""
-    import spcopyro.fit.house as house_module
+    import spcopyro.fit.map_warnings as map_warnings
     from spcopyro.experiments.methods import RunSettings, fit_method
 
     checked = []
@@ -211,7 +211,7 @@ def test_an_experiment_row_gets_the_degenerate_map_check(monkeypatch, caplog):
         checked.append(labels.shape)
         return "degenerate map (test)"
 
-    monkeypatch.setattr(house_module, "house_map_warning", warning)
+    monkeypatch.setattr(map_warnings, "house_map_warning", warning)
     house = make_house(seed=1, spec=HouseSpec.scaled(45, 60))
     with caplog.at_level("WARNING", logger="spcopyro"):
         fit_method("A-dp", house, RunSettings(sweeps=2, trace_every=1))

@@ -219,7 +219,7 @@ def test_warnings_of_cells_on_a_local_cluster_are_kept(tmp_path):
 def test_every_variant_cell_gets_the_degenerate_map_check(tmp_path, monkeypatch, ari_every):
     """A cell with ari_every fits by fit_spco, which never ran fit_house's degenerate-map check:
     its one-concept map went without the warning the others' gave. Both now get it."""
-    import spcopyro.fit.house as house_module
+    import spcopyro.fit.map_warnings as map_warnings
 
     checked: list[tuple] = []
 
@@ -227,7 +227,7 @@ def test_every_variant_cell_gets_the_degenerate_map_check(tmp_path, monkeypatch,
         checked.append((labels.shape, house.grid.num_free))
         return "degenerate map (test)"
 
-    monkeypatch.setattr(house_module, "house_map_warning", warning)
+    monkeypatch.setattr(map_warnings, "house_map_warning", warning)
     path = tmp_path / "warned.toml"
     path.write_text(STUDY.replace("sweeps = 3", f"sweeps = 3\nari_every = {ari_every}"))
     study = load_study(path)
@@ -246,14 +246,14 @@ def test_a_rows_degenerate_map_warning_names_its_fixed_settings(tmp_path, monkey
     says a study with a variant of other settings can be run; a variant keeps its advice."""
     import numpy as np
 
-    import spcopyro.fit.house as house_module
+    import spcopyro.fit.map_warnings as map_warnings
     from spcopyro.results.map_checks import degenerate_map_warning
 
     def warning(labels, house, snap, sampled=True, **_):  # one concept, words 5 m apart inside it
         cells, xy = np.array([0, labels.size - 1]), np.array([[0.0, 0.0], [5.0, 0.0]])
         return degenerate_map_warning(np.zeros_like(labels), cells, xy, [["a"], ["b"]], sampled)
 
-    monkeypatch.setattr(house_module, "house_map_warning", warning)
+    monkeypatch.setattr(map_warnings, "house_map_warning", warning)
     path = tmp_path / "rows.toml"
     path.write_text(
         STUDY.replace("seeds = 2", "seeds = 1").replace("[variants.fine]", "[variants.A-orig-g3]")
@@ -282,7 +282,7 @@ def test_a_variant_named_as_a_row_with_other_settings_keeps_the_variants_advice(
     settings (as the shipped studies' are) gets it; this one gets the variants' advice."""
     import numpy as np
 
-    import spcopyro.fit.house as house_module
+    import spcopyro.fit.map_warnings as map_warnings
     from spcopyro.experiments.methods import spco_settings
     from spcopyro.results.map_checks import degenerate_map_warning
 
@@ -290,7 +290,7 @@ def test_a_variant_named_as_a_row_with_other_settings_keeps_the_variants_advice(
         cells, xy = np.array([0, labels.size - 1]), np.array([[0.0, 0.0], [5.0, 0.0]])
         return degenerate_map_warning(np.zeros_like(labels), cells, xy, [["a"], ["b"]], sampled)
 
-    monkeypatch.setattr(house_module, "house_map_warning", warning)
+    monkeypatch.setattr(map_warnings, "house_map_warning", warning)
     path = tmp_path / "rows.toml"
     path.write_text(
         STUDY.replace("seeds = 2", "seeds = 1")

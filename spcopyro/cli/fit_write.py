@@ -59,8 +59,7 @@ def write_outputs(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) 
     """Every output of ``fitted`` into ``job.staged.path``, what the fit found printed, then the
     staging folder moved to OUT (``_fit_staged`` of :mod:`spcopyro.cli.fit`)."""
     from spcopyro._util.outputs import checkpoint_path
-    from spcopyro.fit.house import log_degenerate_map
-    from spcopyro.fit.setting_warnings import log_concept_slots
+    from spcopyro.fit.map_warnings import log_map_warnings
     from spcopyro.gibbs.hyperparameters import describe_hyperparameters
     from spcopyro.results.concept_words import near_uniform
     from spcopyro.results.uncertainty import cell_entropy, free_cells_image
@@ -190,8 +189,7 @@ def write_outputs(job: FitJob, fitted: Fitted, prefetch: FigurePrefetch | None) 
         print(f"adjusted Rand index against the ground truth:{where or f' {ari:.3f}'}")
     concepts = result.concepts()  # listed, then the next step's word
     print_concepts(result, concepts=concepts)
-    log_degenerate_map(result, house, False if job.settings.preset == DEFAULT_PRESET else None)
-    log_concept_slots(result)  # a weak-limit DP short of its L concepts
+    log_map_warnings(result, house, False if job.settings.preset == DEFAULT_PRESET else None)
     vocabulary_size = len(result.vocabulary)
     used = result.concepts_in_use()
     if vocabulary_size == 1:  # "close to uniform" always, and for no reason below

@@ -44,6 +44,8 @@ from spcopyro.data.model_grid import model_house
 from spcopyro.data.word_weighting import resolved_preparation, resolved_settings
 from spcopyro.fit import gibbs_chains  # with_sample_marginals through it: a test's patch reaches
 from spcopyro.fit.gibbs_chains import FitCheckpoint, FitInterrupted, gibbs_outputs, marginal_thin
+from spcopyro.fit.map_warnings import log_degenerate_map as log_degenerate_map  # re-exported
+from spcopyro.fit.map_warnings import log_map_warnings
 from spcopyro.fit.preset_fits import log_skipped_preset_inference
 from spcopyro.fit.preset_fits import preset_fit_kwargs as preset_fit_kwargs  # re-exported
 from spcopyro.fit.refine import (
@@ -60,7 +62,6 @@ from spcopyro.fit.setting_warnings import CONCENTRATION_RANGE as CONCENTRATION_R
 from spcopyro.fit.setting_warnings import FREEZING_GAMMA as FREEZING_GAMMA
 from spcopyro.fit.setting_warnings import config_warnings as config_warnings
 from spcopyro.fit.setting_warnings import gamma_warning as gamma_warning
-from spcopyro.fit.setting_warnings import log_concept_slots
 from spcopyro.fit.setting_warnings import preparation_warnings as preparation_warnings
 from spcopyro.fit.starts import Init, init_name, initial_labels
 from spcopyro.fit.variational_checkpoint import VariationalSaving
@@ -83,7 +84,7 @@ from spcopyro.inference.names import SAMPLERS as SAMPLERS  # re-exported: label 
 from spcopyro.inference.protocol import InferenceOutput
 from spcopyro.maps.free_space import check_free_cells
 from spcopyro.model import ModelData, check_concentration_names, make_model_data
-from spcopyro.results.map_checks import coverage_warning, house_map_warning
+from spcopyro.results.map_checks import coverage_warning
 from spcopyro.results.point_estimate import check_point_estimate
 from spcopyro.results.posterior_means import (
     concept_totals,
@@ -142,21 +143,6 @@ def provenance(
         "software": software_versions(),
         "reproducibility": RANDOM_STREAMS_NOTE,
     }
-
-
-def log_degenerate_map(
-    result: SpCoResult, house: House, default_preset_skipped: bool | None = None
-) -> str | None:
-    """Log (logger ``"spcopyro"``) and return the warning of a degenerate reported map -- one
-    concept over most of the free cells while words said at different places lie inside it, or
-    lie outside it in small concepts (:func:`spcopyro.results.map_checks.degenerate_map_warning`,
-    with its ``default_preset_skipped``) -- else None."""
-    sampled = result.method in SAMPLERS  # else --merge-moves needs --method gibbs
-    snap, skipped = result.preparation.snap_distance, default_preset_skipped
-    warning = house_map_warning(result.labels, house, snap, sampled, default_preset_skipped=skipped)
-    if warning:
-        logger.warning(warning)
-    return warning
 
 
 def prepare_model_data(
@@ -447,7 +433,7 @@ def fit_house(
     """Fit SpCoMapping to a house. A degenerate reported map (one concept over most of the
     map while words said at different places lie inside it, or outside it in small concepts) is
     logged as a warning (:func:`log_degenerate_map`), as is a weak-limit DP's map using nearly
-    all of its L concepts (:func:`~spcopyro.fit.setting_warnings.log_concept_slots`).
+    all of its L concepts (:func:`~spcopyro.fit.map_warnings.log_concept_slots`).
 
     Args:
         settings: model hyperparameters and data preparation (default: :func:`preset`'s); a
@@ -531,8 +517,7 @@ def fit_house(
             seed + kept, [round(r.best_objective, 1) for r in results],
         )  # fmt: skip
     default = bool(skipped) if settings.preset == DEFAULT_PRESET else None  # for its advice
-    log_degenerate_map(results[kept], house, default)
-    log_concept_slots(results[kept])  # a weak-limit DP short of its L concepts
+    log_map_warnings(results[kept], house, default)  # degenerate, short of concept slots
     return results[kept]
 
 

@@ -5,28 +5,14 @@ nothing (a footprint's kernel or field of view without a footprint).
 
 :func:`spcopyro.fit.house.prepare_model_data` logs them (logger ``"spcopyro"``), so every fit,
 ``spcopyro fit`` included, says them; they depend on the settings only, and on whether the fit
-samples (those about the Gibbs sampler are given to gibbs and vi-gibbs only).
-
-One is said after the fit, of the setting L: :func:`log_concept_slots`, a weak-limit DP whose
-map uses nearly all of its L concepts (:func:`spcopyro.results.map_checks.concept_slots_warning`),
-which :func:`~spcopyro.fit.house.fit_house` and ``spcopyro fit`` log with the degenerate-map
-warning.
+samples (those about the Gibbs sampler are given to gibbs and vi-gibbs only). The warnings on
+a fit's map, which read its result, are in :mod:`spcopyro.fit.map_warnings`.
 """
 
 from __future__ import annotations
 
-import logging
-from typing import TYPE_CHECKING
-
 from spcopyro._util.messages import setting
 from spcopyro.config import CONCENTRATION_FIELDS, DataPreparation, SpCoConfig
-from spcopyro.inference.names import SAMPLERS
-from spcopyro.results.map_checks import concept_slots_warning
-
-if TYPE_CHECKING:
-    from spcopyro.results.result import SpCoResult
-
-logger = logging.getLogger("spcopyro")
 
 FREEZING_GAMMA = 10.0
 """gamma at and above which the sampler freezes: measured from random labels on the synthetic
@@ -55,6 +41,12 @@ def gamma_warning(config: SpCoConfig) -> str | None:
     )
 
 
+def freezes(config: SpCoConfig) -> bool:
+    """Whether gamma is at or above :data:`FREEZING_GAMMA`, where the Gibbs sampler freezes in
+    its random start's patches (:func:`config_warnings` warns a sampled fit)."""
+    return config.gamma >= FREEZING_GAMMA
+
+
 def config_warnings(config: SpCoConfig, sampled: bool = True) -> list[str]:
     """Warnings, with the reason, for legal but extreme model settings (empty if none).
     ``sampled``: the fit samples (gibbs, vi-gibbs); False leaves out the warnings that concern
@@ -80,7 +72,7 @@ def config_warnings(config: SpCoConfig, sampled: bool = True) -> list[str]:
     warnings = [w for w in (gamma_warning(config),) if w]
     if not sampled:
         return warnings
-    if config.gamma >= FREEZING_GAMMA:
+    if freezes(config):
         critical = f"{config.critical_gamma:.2f}" if config.connectivity == 4 else "coupling"
         warnings.append(
             f"gamma = {config.gamma:g} is at or above {FREEZING_GAMMA:g}, where the Gibbs "
@@ -137,18 +129,3 @@ def preparation_warnings(data: DataPreparation) -> list[str]:
         f"footprint: footprint_radius is 0, so {where}; "
         f"{it} effect with {setting('footprint_radius=R', '--footprint R')}, R metres > 0"
     ]
-
-
-def log_concept_slots(result: SpCoResult) -> str | None:
-    """Log (logger ``"spcopyro"``) and return the warning of a fit under the weak-limit DP prior
-    whose reported map, or a refined fit's coarse stage (``inference["refine"]["coarse"]``),
-    uses at least :data:`~spcopyro.results.map_checks.SATURATED_SLOTS` of its L concepts
-    (:func:`~spcopyro.results.map_checks.concept_slots_warning`, with :data:`FREEZING_GAMMA`
-    for a sampler), else None."""
-    coarse = (result.inference.get("refine") or {}).get("coarse")
-    stage = None if not coarse else (int(coarse["concepts"]), float(coarse["cell_size"]))
-    freezing = FREEZING_GAMMA if result.method in SAMPLERS else None
-    warning = concept_slots_warning(result.label_image(), result.config, stage, freezing)
-    if warning:
-        logger.warning(warning)
-    return warning

@@ -55,6 +55,7 @@ from spcopyro.config import DEFAULT_PRESET
 if TYPE_CHECKING:
     from spcopyro.config import SpCoConfig
     from spcopyro.data import House
+    from spcopyro.maps import OccupancyGrid
 
 __all__ = [
     "MIN_COVERAGE",
@@ -356,30 +357,36 @@ embedded house at L = 4 (5-300 sweeps), 0.979-0.991 on the saturated coarse stag
 
 
 def concept_slots_warning(
-    label_image: np.ndarray,
+    labels: np.ndarray,
+    grid: OccupancyGrid,
     config: SpCoConfig,
     coarse: tuple[int, float] | None = None,
-    freezing_gamma: float | None = None,
+    disordered: bool = False,
+    frozen: bool = False,
 ) -> str | None:
     """A warning when a fit under the weak-limit DP prior is short of concept slots (the module
     docstring), else None (always under ``prior="dirichlet"``).
 
     Args:
-        label_image: ``[H, W]`` int, the reported concept of every free cell, -1 elsewhere
-            (:meth:`~spcopyro.results.result.SpCoResult.label_image`).
+        labels: ``[N]`` int, the reported concept of every free cell of ``grid``
+            (:meth:`~spcopyro.results.result.SpCoResult.labels_of`).
+        grid: the map the labels are on (its 4-neighbour pairs,
+            :meth:`~spcopyro.maps.grid.OccupancyGrid.neighbour_pairs`).
         config: the fit's model settings (``num_concepts`` L, ``prior``, ``gamma``).
         coarse: a refined fit's coarse stage: (its concepts in use, its cell size in metres);
             it warns when either map uses at least :data:`SATURATED_SLOTS` of L (a refinement
             starts from the coarse map, merged places and all, and its point estimate may join
             specks: 120 of 120 on a coarse stage were reported as 93).
-        freezing_gamma: the Gibbs sampler's freezing point, for a sampled fit
-            (:data:`~spcopyro.fit.setting_warnings.FREEZING_GAMMA`); None: the fit did not
-            sample.
+        disordered: gamma is below the Potts critical coupling (the fit warned so:
+            :func:`~spcopyro.fit.setting_warnings.gamma_warning`).
+        frozen: the fit sampled at gamma where the Gibbs sampler freezes (the fit warned so:
+            :func:`~spcopyro.fit.setting_warnings.freezes`).
 
     The rule::
 
         used  = the concepts in use (of the reported map, or of the coarse stage if more)
-        agree = share of the 4-neighbour pairs of free cells with the same concept
+        agree = E(C) / P: share of the P 4-neighbour pairs of free cells with the same concept
+                (the Potts statistic E(C) of spcopyro.model.potts_agreements, over P pairs)
         warn  if prior == "dp" and used >= ceil(SATURATED_SLOTS * L)
               and agree >= REGION_AGREEMENT
 
@@ -387,21 +394,21 @@ def concept_slots_warning(
     a chain a few sweeps from its random start, disorder below the Potts critical coupling or
     a frozen sampler, the last two said by the fit's own warnings
     (:func:`spcopyro.fit.setting_warnings.config_warnings`). The message names ``used`` of L
-    and the remedy, an upper bound of 2 L (``num_concepts``, ``fit``'s ``--concepts``). Where
-    regions formed while gamma is below the critical coupling ln(1 + sqrt(L)) (4 neighbours,
-    as :func:`~spcopyro.fit.setting_warnings.gamma_warning` tells) or at the freezing point,
-    the message adds that the labels may be those patches and names gamma first, agreeing with
-    that warning.
+    and the remedy, an upper bound of 2 L (``num_concepts``, ``fit``'s ``--concepts``), and
+    that a refit filling about as large a share of 2 L again holds fragments, not places (more
+    sweeps, not slots). Where regions formed while ``disordered`` or ``frozen``, the message
+    adds that the labels may be those patches and names gamma first, agreeing with that
+    warning.
     """
     if config.prior != "dp":  # a finite Dirichlet: L is the known number of concepts
         return None
-    image = np.asarray(label_image)  # [H, W]
+    labels = np.asarray(labels)  # [N]
     num = int(config.num_concepts)
     bound = math.ceil(round(SATURATED_SLOTS * num, 9))  # 108 of 120 (round: 0.9 * L's bits)
-    used = int(np.unique(image[image >= 0]).size)
+    used = int(np.unique(labels).size)
     if max(used, 0 if coarse is None else int(coarse[0])) < bound:
         return None
-    if _like_neighbours(image) < REGION_AGREEMENT:  # patches: every slot fills, whatever L is
+    if _like_neighbours(labels, grid) < REGION_AGREEMENT:  # patches: fill every slot, any L
         return None
     stage = "" if coarse is None else f" ({coarse[0]} on its coarse stage's {coarse[1]:g} m cells)"
     more = 2 * num
@@ -410,10 +417,12 @@ def concept_slots_warning(
         f"the map uses {used} of its L = {num} concept slots{stage}: the weak-limit "
         f"Dirichlet-process prior holds at most L concepts, so places may be merged for want "
         f"of slots; refit with a larger upper bound, {larger} (a sweep's time and memory grow "
-        f"with L)"
+        f"with L); if that refit again fills about 90% of its {more} slots, the extra concepts "
+        f"are fragments rather than places (a house of 960k free cells used 218 of 240): run "
+        f"more {setting('sweeps', '--sweeps')} instead"
     )
     gamma = setting("gamma", "--gamma")
-    if config.connectivity == 4 and config.gamma < config.critical_gamma:  # gamma_warning's
+    if disordered:
         higher = math.log1p(math.sqrt(more))
         message += (
             f"; but with gamma = {config.gamma:g} under the critical coupling "
@@ -421,21 +430,19 @@ def concept_slots_warning(
             f"patches that fill every slot whatever L is (L = {more} raises that coupling to "
             f"{higher:.3f}): raise {gamma} first"
         )
-    elif freezing_gamma is not None and config.gamma >= freezing_gamma:
+    elif frozen:
         message += (
-            f"; but with gamma = {config.gamma:g} at or above {freezing_gamma:g}, where the Gibbs "
-            f"sampler freezes (see its warning), the labels may be the random start's patches, "
-            f"which fill every slot whatever L is: lower {gamma} first"
+            f"; but with gamma = {config.gamma:g}, where the Gibbs sampler freezes (see its "
+            f"warning), the labels may be the random start's patches, which fill every slot "
+            f"whatever L is: lower {gamma} first"
         )
     return message
 
 
-def _like_neighbours(image: np.ndarray) -> float:
-    """The share of the 4-neighbour pairs of free cells (``image`` ``[H, W]`` >= 0) whose
-    concepts are the same; 1 where there is no pair."""
-    same = pairs = 0
-    for a, b in ((image[1:, :], image[:-1, :]), (image[:, 1:], image[:, :-1])):  # [H-1, W], ...
-        both = (a >= 0) & (b >= 0)
-        pairs += int(np.count_nonzero(both))
-        same += int(np.count_nonzero(both & (a == b)))
-    return same / pairs if pairs else 1.0
+def _like_neighbours(labels: np.ndarray, grid: OccupancyGrid) -> float:
+    """E(C) / P: the share of the P 4-neighbour pairs of ``grid``'s free cells whose concepts
+    (``labels`` ``[N]``) are the same; 1 where there is no pair."""
+    pairs = grid.neighbour_pairs(4)  # [P, 2]
+    if not len(pairs):
+        return 1.0
+    return float(np.mean(labels[pairs[:, 0]] == labels[pairs[:, 1]]))
