@@ -47,7 +47,7 @@ import dataclasses
 import numpy as np
 import torch
 
-from spcopyro._util.number_checks import is_number
+from spcopyro._util.number_checks import is_positive_number
 from spcopyro.config import WORDS, SpCoConfig
 from spcopyro.inference.protocol import InferenceOutput
 from spcopyro.likelihood import concept_statistics
@@ -134,7 +134,7 @@ def words_per_cell(data: ModelData, word_scaling: float) -> np.ndarray:
     words column, divided by it). A speck's test (:func:`~spcopyro.results.concept_words.is_speck`,
     :mod:`spcopyro.results.speck_join`) reads them: under
     :data:`~spcopyro.results.concept_words.SPECK_WORDS` words heard in a cluster's cells."""
-    if not (is_number(word_scaling) and np.isfinite(word_scaling) and word_scaling > 0):
+    if not is_positive_number(word_scaling):
         raise ValueError(f"word_scaling must be a positive finite number, got {word_scaling!r}")
     per_cell = data.modality(WORDS).counts.sum(-1).to(DTYPE).numpy()  # [M]
     counts = np.bincount(data.obs_cells.numpy(), weights=per_cell, minlength=data.num_free)  # [N]
